@@ -1,0 +1,2 @@
+//! `ctr-cli`: batch kinematics, diagnosis and hardware runs for concentric tube robots.
+fn main() {}
