@@ -1,2 +1,51 @@
+//! # ctr-core
+//!
+//! Forward kinematics of concentric tube robots (CTRs), `no_std` and allocation-free:
+//! nested, precurved, elastic tubes whose bending and twist follow from their moment
+//! balance. The physics follows Liu et al., "Modeling of and Experimenting with
+//! Concentric Tube Robots: Considering Clearance, Friction and Torsion", Sensors 23
+//! (2023) 3709, generalised to `N` tubes (1 to [`MAX_TUBES`]) with the transmissions
+//! behind the guide twisting too; the equations are in [`twist`].
+//!
+//! Conventions (`shared/spec/formats.md`): tube 1 (index 0) is the outermost; `s_i` is
+//! tube i's exposed length beyond the guide exit, `theta_i` its actuator angle about +z;
+//! W has its origin at the guide exit and +z along insertion, +x where tube 1 bends with
+//! zero rotations and a positive radius. Lengths are mm, angles rad inside the core.
+//!
+//! ```
+//! use ctr_core::{Joints, Model, Robot, Solver, Status, TubeParams};
+//! let outer = TubeParams { curvature_radius_mm: Some(300.0), ..TubeParams::<f64>::new(1.9, 1.6, 160.0, 80.0, 58000.0, 0.33) };
+//! let middle = TubeParams { curvature_radius_mm: Some(180.0), ..TubeParams::<f64>::new(1.4, 1.1, 220.0, 70.0, 58000.0, 0.33) };
+//! let inner = TubeParams { curvature_radius_mm: Some(80.0), ..TubeParams::<f64>::new(0.9, 0.6, 280.0, 50.0, 58000.0, 0.33) };
+//! let robot = Robot::new([outer, middle, inner])?;
+//! let mut solver = Solver::default();
+//! let sol = solver.solve(&robot, &Joints::from_mm_deg([30.0, 60.0, 90.0], [0.0, 45.0, -30.0]), Model::Torsion)?;
+//! assert_eq!(sol.status, Status::Converged);
+//! let q = sol.tip.orientation();
+//! assert!((q.norm() - 1.0).abs() < 1e-12);
+//! # Ok::<(), Box<dyn core::error::Error>>(())
+//! ```
 #![no_std]
-//! core
+
+pub mod joints;
+mod real;
+pub mod robot;
+pub mod se3;
+mod sections;
+pub mod solver;
+pub mod twist;
+
+pub use joints::{JointError, JointKind, Joints};
+pub use real::Real;
+pub use robot::{Field, Robot, RobotError, Tube, TubeParams};
+pub use se3::Frame;
+pub use solver::{
+    Model, Solution, Solver, SolverConfig, Status, DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_STEP_MM,
+    DEFAULT_STEP_FRACTION,
+};
+
+/// Most tubes a robot may have.
+pub const MAX_TUBES: usize = 4;
+
+impl core::error::Error for RobotError {}
+impl core::error::Error for JointError {}

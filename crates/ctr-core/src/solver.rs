@@ -1,0 +1,615 @@
+//! Forward kinematics: the solver, its settings, warm start and results.
+//!
+//! [`Solver::solve`] takes a validated [`Robot`] and [`Joints`] and returns the tip
+//! frame (tube n's material frame at its tip: z the tangent, x the side its precurvature
+//! bends toward) with a [`Status`] and the final boundary residual. The `rigid` model
+//! keeps every tube's angle equal to its actuator angle (constant curvature per section,
+//! closed form); the `torsion` model solves the twist boundary-value problem of
+//! [`crate::twist`] by shooting. A solve never panics and never allocates; a result
+//! that is not [`Status::Converged`] says so.
+
+use crate::joints::{JointError, Joints};
+use crate::real::{c, Real};
+use crate::robot::Robot;
+use crate::se3::{exp, Frame};
+use crate::sections::Sections;
+use crate::twist::{self, inner_twist, PointSink, State};
+use nalgebra::Vector3;
+
+/// Which mechanics the solve uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Model {
+    /// Torsionally rigid tubes: every tube's angle is its actuator angle everywhere.
+    Rigid,
+    /// Torsionally compliant tubes, transmissions included (see [`crate::twist`]).
+    #[default]
+    Torsion,
+}
+
+/// How a solve ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// Newton's step fell below the tolerance.
+    Converged,
+    /// The iteration bound was reached first; the result is the best iterate.
+    IterationLimit,
+    /// The iteration produced non-finite numbers or a singular Jacobian; the result is
+    /// the best finite iterate.
+    Diverged,
+}
+
+/// Solver settings.
+///
+/// ```
+/// let cfg = ctr_core::SolverConfig::<f64>::default();
+/// assert!(cfg.max_step_mm > 0.0 && cfg.max_iterations > 0);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolverConfig<T> {
+    /// Longest RK4 step, mm (also the spacing of backbone points).
+    pub max_step_mm: T,
+    /// RK4 step as a fraction of each section's shortest length scale (bending radius,
+    /// twist wavelength; see `sections::step_length`). [`DEFAULT_STEP_FRACTION`] keeps the
+    /// tip within 1e-4 mm of the converged solution on the project's robots
+    /// (convergence study in `crates/ctr-core/tests/convergence.rs`).
+    pub step_fraction: T,
+    /// Most Newton iterations (integrations with sensitivities) per solve.
+    pub max_iterations: u32,
+    /// Newton stops when its step in every base twist rate is below this, rad/mm.
+    pub step_tolerance_per_mm: T,
+}
+
+/// Default longest RK4 step, mm.
+pub const DEFAULT_MAX_STEP_MM: f64 = 10.0;
+/// Default RK4 step as a fraction of a section's length scale.
+pub const DEFAULT_STEP_FRACTION: f64 = 0.1;
+/// Default bound on Newton iterations.
+pub const DEFAULT_MAX_ITERATIONS: u32 = 30;
+
+impl<T: Real> Default for SolverConfig<T> {
+    fn default() -> Self {
+        SolverConfig {
+            max_step_mm: c(DEFAULT_MAX_STEP_MM),
+            step_fraction: c(DEFAULT_STEP_FRACTION),
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            // quadratic convergence: the error after a step of size d is about d^2
+            step_tolerance_per_mm: T::default_epsilon().sqrt() * c(1e-2),
+        }
+    }
+}
+
+/// The result of one forward-kinematics solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Solution<T: Real, const N: usize> {
+    /// Tube n's material frame at the tip, in W (mm).
+    pub tip: Frame<T>,
+    /// How the solve ended.
+    pub status: Status,
+    /// Largest free-tip torque residual `|u_i(s_i)|`, rad/mm (0 for `rigid`).
+    pub residual_per_mm: T,
+    /// Newton iterations used.
+    pub iterations: u32,
+    /// Twist rate of each tube at the guide exit, rad/mm.
+    pub base_twist_per_mm: [T; N],
+    /// Angle of each tube's material frame at the guide exit, rad.
+    pub base_angle_rad: [T; N],
+}
+
+/// Memory carried between solves along a trajectory.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct WarmStart<T, const N: usize> {
+    /// last two solutions' unknowns and joints, newest first
+    x: [[T; N]; 2],
+    q: [Joints<T, N>; 2],
+    count: usize,
+}
+
+/// A forward-kinematics solver: settings plus warm-start memory, no heap.
+///
+/// ```
+/// use ctr_core::{Joints, Model, Robot, Solver, Status, TubeParams};
+/// let outer = TubeParams { curvature_radius_mm: Some(200.0), ..TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
+/// let inner = TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) };
+/// let robot = Robot::new([outer, inner]).unwrap();
+/// let mut solver = Solver::default();
+/// let q = Joints::from_mm_deg([40.0, 90.0], [0.0, 120.0]);
+/// let sol = solver.solve(&robot, &q, Model::Torsion).unwrap();
+/// assert_eq!(sol.status, Status::Converged);
+/// assert!(sol.tip.position.z > 50.0);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Solver<T, const N: usize> {
+    /// Settings.
+    pub config: SolverConfig<T>,
+    warm: WarmStart<T, N>,
+}
+
+impl<T: Real, const N: usize> Default for Solver<T, N> {
+    fn default() -> Self {
+        Self::new(SolverConfig::default())
+    }
+}
+
+impl<T: Real, const N: usize> Solver<T, N> {
+    /// A solver with the given settings and no warm-start memory.
+    ///
+    /// ```
+    /// let s = ctr_core::Solver::<f64, 3>::new(ctr_core::SolverConfig { max_step_mm: 2.0, ..Default::default() });
+    /// assert_eq!(s.config.max_step_mm, 2.0);
+    /// ```
+    pub fn new(config: SolverConfig<T>) -> Self {
+        let q = Joints::new([T::zero(); N], [T::zero(); N]);
+        Solver {
+            config,
+            warm: WarmStart {
+                x: [[T::zero(); N]; 2],
+                q: [q; 2],
+                count: 0,
+            },
+        }
+    }
+
+    /// Forgets the warm-start memory: the next solve starts cold.
+    ///
+    /// ```
+    /// let mut s = ctr_core::Solver::<f64, 2>::default();
+    /// s.reset();
+    /// ```
+    pub fn reset(&mut self) {
+        self.warm.count = 0;
+    }
+
+    /// Solves the forward kinematics, warm-started from the previous solves of this
+    /// solver (extrapolated along the joint-space direction of the last two).
+    /// Errors only for joints the robot cannot take; solver trouble is a [`Status`].
+    ///
+    /// ```
+    /// # use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+    /// # let robot = Robot::new([TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) }]).unwrap();
+    /// let mut solver = Solver::default();
+    /// let sol = solver.solve(&robot, &Joints::from_mm_deg([50.0], [0.0]), Model::Torsion).unwrap();
+    /// // one tube: an arc of radius 100 mm over 50 mm bends toward +x
+    /// let r = 100.0_f64;
+    /// assert!((sol.tip.position.x - r * (1.0 - (50.0 / r).cos())).abs() < 1e-9);
+    /// ```
+    pub fn solve(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+    ) -> Result<Solution<T, N>, JointError> {
+        self.solve_into(robot, q, model, None).map(|(s, _)| s)
+    }
+
+    /// As [`solve`](Self::solve), ignoring and keeping the warm-start memory.
+    ///
+    /// ```
+    /// # use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+    /// # let robot = Robot::new([TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)]).unwrap();
+    /// let sol = Solver::default().solve_cold(&robot, &Joints::from_mm_deg([50.0], [0.0]), Model::Rigid).unwrap();
+    /// assert!((sol.tip.position.z - 50.0).abs() < 1e-12); // a straight tube
+    /// ```
+    pub fn solve_cold(
+        &self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+    ) -> Result<Solution<T, N>, JointError> {
+        let mut s = *self;
+        s.reset();
+        s.solve(robot, q, model)
+    }
+
+    /// Solves and writes backbone points (positions in W, mm, from the guide exit to the
+    /// tip, one per integration step; the guide exit itself first) into `points`.
+    /// Returns the solution and the number of points the backbone has; if that exceeds
+    /// `points.len()`, only the first `points.len()` were written.
+    ///
+    /// ```
+    /// # use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+    /// # let robot = Robot::new([TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)]).unwrap();
+    /// let mut pts = [nalgebra::Vector3::zeros(); 64];
+    /// let (_, n) = Solver::default().solve_backbone(&robot, &Joints::from_mm_deg([40.0], [0.0]), Model::Torsion, &mut pts).unwrap();
+    /// assert!(n > 2 && n <= 64);
+    /// assert!((pts[n - 1].z - 40.0).abs() < 1e-12);
+    /// ```
+    pub fn solve_backbone(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+        points: &mut [Vector3<T>],
+    ) -> Result<(Solution<T, N>, usize), JointError> {
+        self.solve_into(robot, q, model, Some(points))
+    }
+
+    fn solve_into(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+        points: Option<&mut [Vector3<T>]>,
+    ) -> Result<(Solution<T, N>, usize), JointError> {
+        q.validate(robot)?;
+        let k = robot.tubes().map(|t| t.curvature_per_mm());
+        let sections = Sections::new(
+            robot,
+            &q.s_mm,
+            &k,
+            self.config.max_step_mm,
+            self.config.step_fraction,
+        );
+        let mut sink = PointSink {
+            buf: points,
+            written: 0,
+            needed: 0,
+        };
+        let (sol, n) = match model {
+            Model::Rigid => (rigid(robot, q, &sections, &mut sink), sink.needed),
+            Model::Torsion => {
+                let guess = self.guess(q);
+                let sol = self.shoot(robot, q, &sections, guess, &mut sink);
+                if sol.status == Status::Converged {
+                    self.remember(q, &sol.base_twist_per_mm);
+                }
+                (sol, sink.needed)
+            }
+        };
+        Ok((sol, n))
+    }
+
+    /// Warm-start guess: linear extrapolation of the last two solutions along the
+    /// projection of the joint step onto the last step.
+    fn guess(&self, q: &Joints<T, N>) -> [T; N] {
+        match self.warm.count {
+            0 => [T::zero(); N],
+            1 => self.warm.x[0],
+            _ => {
+                let (q1, q0) = (&self.warm.q[0], &self.warm.q[1]);
+                let mut num = T::zero();
+                let mut den = T::zero();
+                // feeds in mm and angles in rad weigh alike (1 rad ~ 1 mm of the robot's scale
+                // would be arbitrary; both only set the extrapolation fraction)
+                for i in 0..N {
+                    let a = q.s_mm[i] - q1.s_mm[i];
+                    let b = q1.s_mm[i] - q0.s_mm[i];
+                    let ta = q.theta_rad[i] - q1.theta_rad[i];
+                    let tb = q1.theta_rad[i] - q0.theta_rad[i];
+                    num += a * b + ta * tb;
+                    den += b * b + tb * tb;
+                }
+                let alpha = if den > T::zero() {
+                    (num / den).max(T::zero()).min(c(2.0))
+                } else {
+                    T::zero()
+                };
+                let mut x = self.warm.x[0];
+                for i in 0..N {
+                    x[i] += (self.warm.x[0][i] - self.warm.x[1][i]) * alpha;
+                }
+                x
+            }
+        }
+    }
+
+    fn remember(&mut self, q: &Joints<T, N>, base_twist: &[T; N]) {
+        self.warm.x[1] = self.warm.x[0];
+        self.warm.q[1] = self.warm.q[0];
+        self.warm.x[0] = *base_twist;
+        self.warm.q[0] = *q;
+        self.warm.count = (self.warm.count + 1).min(2);
+    }
+
+    /// Newton shooting on the base twist rates, then one pass for the pose.
+    fn shoot(
+        &self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        sections: &Sections<T, N>,
+        guess: [T; N],
+        sink: &mut PointSink<'_, T>,
+    ) -> Solution<T, N> {
+        let m = N - 1;
+        let cfg = &self.config;
+        let mut x = guess;
+        let mut status = Status::IterationLimit;
+        let mut iterations = 0;
+        let mut best = (x, T::max_value().unwrap_or(T::one()));
+        let mut prev_norm = T::max_value().unwrap_or(T::one());
+        let mut last_step = [T::zero(); N];
+        let mut damping = T::one();
+        if m == 0 {
+            status = Status::Converged;
+        }
+        while m > 0 && iterations < cfg.max_iterations {
+            iterations += 1;
+            let (r, jac) = residual::<T, N, true>(robot, q, sections, &x);
+            let norm = max_abs(&r, m);
+            if !norm.is_finite() {
+                status = Status::Diverged;
+                break;
+            }
+            if norm < best.1 {
+                best = (x, norm);
+            }
+            if norm > prev_norm * c(1.5) && damping > c(1.0 / 64.0) {
+                // the last step overshot: go back half way and try again
+                damping *= c(0.5);
+                for i in 0..m {
+                    x[i] += last_step[i] * damping;
+                }
+                continue;
+            }
+            prev_norm = norm;
+            damping = T::one();
+            let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
+                status = Status::Diverged;
+                break;
+            };
+            let mut step = T::zero();
+            for i in 0..m {
+                x[i] -= dx[i];
+                last_step[i] = dx[i];
+                step = step.max(dx[i].abs());
+            }
+            if !step.is_finite() {
+                status = Status::Diverged;
+                break;
+            }
+            if step <= cfg.step_tolerance_per_mm {
+                status = Status::Converged;
+                break;
+            }
+        }
+        if status != Status::Converged || !all_finite(&x) {
+            x = best.0;
+        }
+        let mut sol = pose_pass(robot, q, sections, &x, sink);
+        sol.iterations = iterations;
+        let r = sol.residual_per_mm;
+        if status == Status::Converged && (r > cfg.step_tolerance_per_mm * c(1e3) || !r.is_finite())
+        {
+            status = Status::IterationLimit;
+        }
+        if !sol.tip.position.iter().all(|v| v.is_finite()) {
+            status = Status::Diverged;
+        }
+        sol.status = status;
+        sol
+    }
+}
+
+fn all_finite<T: Real, const N: usize>(x: &[T; N]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}
+
+fn max_abs<T: Real, const N: usize>(r: &[T; N], m: usize) -> T {
+    let mut n = T::zero();
+    for v in r.iter().take(m) {
+        if !v.is_finite() {
+            return T::max_value().unwrap_or(T::one()) * c(2.0);
+        }
+        n = n.max(v.abs());
+    }
+    n
+}
+
+/// Initial twist state at the guide exit for unknowns `x`, and tube n's angle there.
+fn initial_state<T: Real, const N: usize, const SENS: bool>(
+    robot: &Robot<T, N>,
+    q: &Joints<T, N>,
+    sections: &Sections<T, N>,
+    x: &[T; N],
+) -> (State<T, N>, T, T, [T; N]) {
+    let gj = robot.tubes().map(|t| t.torsional_stiffness_nmm2());
+    let mut st = State::zero();
+    let present = if sections.len > 0 {
+        sections.list[0].present
+    } else {
+        [false; N]
+    };
+    for j in 0..N - 1 {
+        st.w[j] = x[j];
+        if SENS {
+            st.dw[j][j] = T::one();
+        }
+    }
+    let (un, dun) = inner_twist::<T, N, SENS>(&present, &gj, &st.w, &st.dw);
+    let trans_n = robot.tubes()[N - 1].params().length_mm - q.s_mm[N - 1];
+    let psi_n = q.theta_rad[N - 1] + trans_n * un;
+    for j in 0..N - 1 {
+        let trans = robot.tubes()[j].params().length_mm - q.s_mm[j];
+        let b = q.theta_rad[j] + trans * x[j] - psi_n;
+        let (s, co) = b.sin_cos();
+        st.z[j] = [co, s];
+        if SENS {
+            for k in 0..N - 1 {
+                st.db[j][k] = -trans_n * dun[k];
+            }
+            st.db[j][j] += trans;
+        }
+    }
+    (st, psi_n, un, gj)
+}
+
+/// Residuals `u_i(s_i)` and their Jacobian `d r_i / d x_k` for `i, k < N-1`.
+fn residual<T: Real, const N: usize, const SENS: bool>(
+    robot: &Robot<T, N>,
+    q: &Joints<T, N>,
+    sections: &Sections<T, N>,
+    x: &[T; N],
+) -> ([T; N], [[T; N]; N]) {
+    let (mut st, _, _, gj) = initial_state::<T, N, SENS>(robot, q, sections, x);
+    let mut r = [T::zero(); N];
+    let mut jac = [[T::zero(); N]; N];
+    let mut done = [false; N];
+    let mut frame = Frame::identity();
+    let mut sink = PointSink {
+        buf: None,
+        written: 0,
+        needed: 0,
+    };
+    let record =
+        |st: &State<T, N>, at: T, done: &mut [bool; N], r: &mut [T; N], jac: &mut [[T; N]; N]| {
+            for j in 0..N - 1 {
+                if !done[j] && q.s_mm[j] <= at {
+                    done[j] = true;
+                    r[j] = st.w[j];
+                    jac[j] = st.dw[j];
+                }
+            }
+        };
+    record(&st, T::zero(), &mut done, &mut r, &mut jac);
+    for sec in sections.list.iter().take(sections.len) {
+        twist::section::<T, N, SENS, false>(sec, &gj, &mut st, &mut frame, &mut sink);
+        record(&st, sec.end, &mut done, &mut r, &mut jac);
+    }
+    record(
+        &st,
+        T::max_value().unwrap_or(T::one()),
+        &mut done,
+        &mut r,
+        &mut jac,
+    );
+    (r, jac)
+}
+
+/// Integrates the converged twist once more and chains the pose.
+fn pose_pass<T: Real, const N: usize>(
+    robot: &Robot<T, N>,
+    q: &Joints<T, N>,
+    sections: &Sections<T, N>,
+    x: &[T; N],
+    sink: &mut PointSink<'_, T>,
+) -> Solution<T, N> {
+    let (mut st, psi_n, un0, gj) = initial_state::<T, N, false>(robot, q, sections, x);
+    let mut base_twist = *x;
+    base_twist[N - 1] = un0;
+    let mut base_angle = [T::zero(); N];
+    for j in 0..N {
+        let trans = robot.tubes()[j].params().length_mm - q.s_mm[j];
+        base_angle[j] = q.theta_rad[j] + trans * base_twist[j];
+    }
+    let mut frame = Frame::identity();
+    let (s, co) = psi_n.sin_cos();
+    frame.rotate_z((co, s));
+    sink.push(&frame.position);
+    let mut residual = T::zero();
+    let mut done = [false; N];
+    let record = |st: &State<T, N>, at: T, done: &mut [bool; N], residual: &mut T| {
+        for j in 0..N - 1 {
+            if !done[j] && q.s_mm[j] <= at {
+                done[j] = true;
+                *residual = residual.max(st.w[j].abs());
+                if !st.w[j].is_finite() {
+                    *residual = T::max_value().unwrap_or(T::one());
+                }
+            }
+        }
+    };
+    record(&st, T::zero(), &mut done, &mut residual);
+    for sec in sections.list.iter().take(sections.len) {
+        twist::section::<T, N, false, true>(sec, &gj, &mut st, &mut frame, sink);
+        record(&st, sec.end, &mut done, &mut residual);
+    }
+    Solution {
+        tip: frame,
+        status: Status::Converged,
+        residual_per_mm: residual,
+        iterations: 0,
+        base_twist_per_mm: base_twist,
+        base_angle_rad: base_angle,
+    }
+}
+
+/// The torsionally rigid model: constant curvature per section, exact exponentials.
+fn rigid<T: Real, const N: usize>(
+    robot: &Robot<T, N>,
+    q: &Joints<T, N>,
+    sections: &Sections<T, N>,
+    sink: &mut PointSink<'_, T>,
+) -> Solution<T, N> {
+    let mut st = State::<T, N>::zero();
+    let tn = q.theta_rad[N - 1];
+    for j in 0..N - 1 {
+        let (s, co) = (q.theta_rad[j] - tn).sin_cos();
+        st.z[j] = [co, s];
+    }
+    let mut frame = Frame::identity();
+    let (s, co) = tn.sin_cos();
+    frame.rotate_z((co, s));
+    sink.push(&frame.position);
+    let e3 = Vector3::z();
+    for sec in sections.list.iter().take(sections.len) {
+        let rate = twist::body_rate(sec, &st, T::zero());
+        let len = sec.end - sec.start;
+        let sub = if sink.active() {
+            twist::steps(len, sec.h)
+        } else {
+            1
+        };
+        let h = len / nalgebra::convert::<f64, T>(sub as f64);
+        let (r, p) = exp(rate * h, e3 * h);
+        for _ in 0..sub {
+            frame.compose(&r, &p);
+            sink.push(&frame.position);
+        }
+    }
+    let _ = robot;
+    Solution {
+        tip: frame,
+        status: Status::Converged,
+        residual_per_mm: T::zero(),
+        iterations: 0,
+        base_twist_per_mm: [T::zero(); N],
+        base_angle_rad: q.theta_rad,
+    }
+}
+
+/// Solves `J dx = r` for the leading `m x m` block by Gaussian elimination with
+/// partial pivoting; `None` if singular.
+fn solve_linear<T: Real, const N: usize>(
+    mut a: [[T; N]; N],
+    mut b: [T; N],
+    m: usize,
+) -> Option<[T; N]> {
+    let mut scale = T::zero();
+    for row in a.iter().take(m) {
+        for v in row.iter().take(m) {
+            scale = scale.max(v.abs());
+        }
+    }
+    let tiny = scale * T::default_epsilon() * c(16.0);
+    for col in 0..m {
+        let mut piv = col;
+        for row in col + 1..m {
+            if a[row][col].abs() > a[piv][col].abs() {
+                piv = row;
+            }
+        }
+        let pivot = a[piv][col].abs();
+        if pivot <= tiny || !pivot.is_finite() {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for row in col + 1..m {
+            let f = a[row][col] / a[col][col];
+            for k in col..m {
+                let v = a[col][k];
+                a[row][k] -= f * v;
+            }
+            let v = b[col];
+            b[row] -= f * v;
+        }
+    }
+    let mut x = [T::zero(); N];
+    for col in (0..m).rev() {
+        let mut acc = b[col];
+        for k in col + 1..m {
+            acc -= a[col][k] * x[k];
+        }
+        x[col] = acc / a[col][col];
+    }
+    Some(x)
+}

@@ -1,0 +1,111 @@
+//! Test helpers: the shared robots and reference tables, read without the std crate.
+#![allow(dead_code, missing_docs)]
+
+use ctr_core::{Joints, Robot, TubeParams};
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// `shared/data` beside the repository (override with `CTR_SHARED_DATA`).
+pub fn shared_data() -> PathBuf {
+    if let Ok(p) = std::env::var("CTR_SHARED_DATA") {
+        return PathBuf::from(p);
+    }
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
+}
+
+#[derive(Deserialize)]
+struct RobotFile {
+    tube: Vec<TubeFile>,
+}
+
+#[derive(Deserialize)]
+struct TubeFile {
+    outer_diameter_mm: f64,
+    inner_diameter_mm: f64,
+    length_mm: f64,
+    curved_length_mm: f64,
+    curvature_radius_mm: Option<f64>,
+    youngs_modulus_mpa: f64,
+    poisson_ratio: f64,
+    density_kg_m3: Option<f64>,
+}
+
+pub fn tube_params(name: &str) -> Vec<TubeParams<f64>> {
+    let path = shared_data().join("robots").join(format!("{name}.toml"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let file: RobotFile = toml::from_str(&text).unwrap();
+    file.tube
+        .iter()
+        .map(|t| TubeParams {
+            curvature_radius_mm: t.curvature_radius_mm,
+            density_kg_m3: t.density_kg_m3,
+            ..TubeParams::new(
+                t.outer_diameter_mm,
+                t.inner_diameter_mm,
+                t.length_mm,
+                t.curved_length_mm,
+                t.youngs_modulus_mpa,
+                t.poisson_ratio,
+            )
+        })
+        .collect()
+}
+
+pub fn robot<const N: usize>(name: &str) -> Robot<f64, N> {
+    let p: [TubeParams<f64>; N] = tube_params(name).try_into().unwrap();
+    Robot::new(p).unwrap()
+}
+
+pub fn robot_f32<const N: usize>(name: &str) -> Robot<f32, N> {
+    let p: Vec<TubeParams<f32>> = tube_params(name)
+        .iter()
+        .map(|t| TubeParams {
+            outer_diameter_mm: t.outer_diameter_mm as f32,
+            inner_diameter_mm: t.inner_diameter_mm as f32,
+            length_mm: t.length_mm as f32,
+            curved_length_mm: t.curved_length_mm as f32,
+            curvature_radius_mm: t.curvature_radius_mm.map(|v| v as f32),
+            youngs_modulus_mpa: t.youngs_modulus_mpa as f32,
+            poisson_ratio: t.poisson_ratio as f32,
+            bending_stiffness_nmm2: None,
+            torsional_stiffness_nmm2: None,
+            density_kg_m3: t.density_kg_m3.map(|v| v as f32),
+        })
+        .collect();
+    Robot::new(p.try_into().unwrap()).unwrap()
+}
+
+/// One row of a reference table: joints, tip position (mm), quaternion (w, x, y, z).
+pub struct RefRow<const N: usize> {
+    pub q: Joints<f64, N>,
+    pub p: [f64; 3],
+    pub quat: [f64; 4],
+}
+
+pub fn reference<const N: usize>(name: &str, model: &str) -> Vec<RefRow<N>> {
+    let path = shared_data()
+        .join("reference")
+        .join(format!("{name}-{model}.csv"));
+    let mut rdr =
+        csv::Reader::from_path(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    rdr.records()
+        .map(|r| {
+            let v: Vec<f64> = r.unwrap().iter().map(|x| x.parse().unwrap()).collect();
+            let s: [f64; N] = core::array::from_fn(|i| v[2 * i]);
+            let t: [f64; N] = core::array::from_fn(|i| v[2 * i + 1]);
+            RefRow {
+                q: Joints::from_mm_deg(s, t),
+                p: [v[2 * N], v[2 * N + 1], v[2 * N + 2]],
+                quat: [v[2 * N + 3], v[2 * N + 4], v[2 * N + 5], v[2 * N + 6]],
+            }
+        })
+        .collect()
+}
+
+/// Angle between two orientations, rad.
+pub fn angle_between(a: &nalgebra::UnitQuaternion<f64>, quat: [f64; 4]) -> f64 {
+    let b = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        quat[0], quat[1], quat[2], quat[3],
+    ));
+    a.angle_to(&b)
+}

@@ -1,0 +1,54 @@
+//! The core reproduces the independent simulator's tables in `shared/data/reference`.
+mod common;
+use common::*;
+use ctr_core::{Model, Solver, Status};
+
+/// Contract: tip position within 1e-3 mm, orientation within 1e-4 rad.
+const POS_TOL_MM: f64 = 1e-3;
+const ROT_TOL_RAD: f64 = 1e-4;
+
+fn check<const N: usize>(name: &str, table: &str, model: Model) {
+    let robot = robot::<N>(name);
+    let rows = reference::<N>(name, table);
+    assert_eq!(rows.len(), 200);
+    let mut solver = Solver::default();
+    let (mut worst_p, mut worst_r) = (0.0_f64, 0.0_f64);
+    for row in &rows {
+        let sol = solver.solve_cold(&robot, &row.q, model).unwrap();
+        assert_eq!(sol.status, Status::Converged, "{name} {:?}", row.q);
+        let e = (sol.tip.position - nalgebra::Vector3::from(row.p)).norm();
+        worst_p = worst_p.max(e);
+        worst_r = worst_r.max(angle_between(&sol.tip.orientation(), row.quat));
+        // warm start along the table must give the same answer
+        let warm = solver.solve(&robot, &row.q, model).unwrap();
+        assert!((warm.tip.position - sol.tip.position).norm() < 1e-6);
+    }
+    eprintln!("{name}-{table}: max position error {worst_p:.3e} mm, orientation {worst_r:.3e} rad");
+    assert!(worst_p <= POS_TOL_MM, "{name}-{table}: {worst_p} mm");
+    assert!(worst_r <= ROT_TOL_RAD, "{name}-{table}: {worst_r} rad");
+}
+
+#[test]
+fn liu2023_rigid() {
+    check::<2>("liu2023", "rigid", Model::Rigid);
+}
+#[test]
+fn nitinol2_rigid() {
+    check::<2>("nitinol2", "rigid", Model::Rigid);
+}
+#[test]
+fn nitinol3_rigid() {
+    check::<3>("nitinol3", "rigid", Model::Rigid);
+}
+#[test]
+fn liu2023_torsion() {
+    check::<2>("liu2023", "torsion", Model::Torsion);
+}
+#[test]
+fn nitinol2_torsion() {
+    check::<2>("nitinol2", "torsion", Model::Torsion);
+}
+#[test]
+fn nitinol3_torsion() {
+    check::<3>("nitinol3", "torsion", Model::Torsion);
+}
