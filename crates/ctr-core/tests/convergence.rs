@@ -1,8 +1,8 @@
 //! Step-size study: the torsion solve converges at 4th order as the RK4 step shrinks, and
 //! the default step meets the 1e-3 mm contract against the reference tables.
-mod common;
-use common::*;
+
 use ctr_core::{Joints, Model, Robot, Solver, SolverConfig, DEFAULT_STEP_FRACTION};
+use ctr_suite::*;
 
 /// Tip with RK4 steps of `f` times each section's length scale (capped at 1000 mm).
 fn tip<const N: usize>(

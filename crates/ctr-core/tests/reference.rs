@@ -1,7 +1,7 @@
 //! The core reproduces the independent simulator's tables in `shared/data/reference`.
-mod common;
-use common::*;
+
 use ctr_core::{Model, Solver, Status};
+use ctr_suite::*;
 
 /// Contract: tip position within 1e-3 mm, orientation within 1e-4 rad.
 const POS_TOL_MM: f64 = 1e-3;

@@ -1,5 +1,7 @@
-//! Test helpers: the shared robots and reference tables, read without the std crate.
-#![allow(dead_code, missing_docs)]
+//! Helpers shared by the cross-crate tests and the benches: the robots and reference
+//! tables of `shared/data`, read without the std crate so that ctr-core's own tests
+//! need nothing but the core.
+#![allow(missing_docs)]
 
 use ctr_core::{Joints, Robot, TubeParams};
 use serde::Deserialize;
@@ -10,7 +12,7 @@ pub fn shared_data() -> PathBuf {
     if let Ok(p) = std::env::var("CTR_SHARED_DATA") {
         return PathBuf::from(p);
     }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data")
 }
 
 #[derive(Deserialize)]
