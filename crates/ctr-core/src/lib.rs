@@ -26,6 +26,10 @@
 //! # Ok::<(), Box<dyn core::error::Error>>(())
 //! ```
 #![no_std]
+#![forbid(unsafe_code)]
+
+/// The linear algebra crate the core is built on (its types appear in the API).
+pub use nalgebra;
 
 pub mod joints;
 mod real;
