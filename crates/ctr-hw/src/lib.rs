@@ -1,1 +1,34 @@
-//! Serial link to the servo controller (Dynamixel Protocol 2.0). Work in progress.
+//! Serial link to the servo controller of the concentric-tube-robot rig, speaking
+//! Dynamixel Protocol 2.0.
+//!
+//! Layers, bottom up:
+//!
+//! * [`transport`]: bytes over a serial port ([`transport::SerialTransport`]) or a scripted
+//!   mock ([`transport::MockTransport`]);
+//! * [`protocol`]: pure framing functions (CRC, byte stuffing, packets);
+//! * [`bus`]: ping, read, write, sync read and sync write with bounded, idempotent retries;
+//! * [`actuation`]: joint values (mm, degrees) to motor ticks and back, with limit checks;
+//! * [`rig`]: moves joints, reads them back and stops on faults;
+//! * [`emulator`]: an in-process four-motor bus for tests and for `ctr-cli hw emulate`.
+//!
+//! ```
+//! use ctr_hw::emulator::{Emulator, EmulatorConfig};
+//! use ctr_hw::bus::{Bus, BusConfig};
+//! use ctr_hw::transport::SerialTransport;
+//!
+//! let pty = Emulator::new(EmulatorConfig::default()).serve_pty()?;
+//! let link = SerialTransport::open(pty.path(), 1_000_000)?;
+//! let mut bus = Bus::new(link, BusConfig::default());
+//! assert_eq!(bus.ping(1)?.model, ctr_hw::control_table::MODEL_XM430_W350);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod actuation;
+pub mod bus;
+pub mod control_table;
+pub mod emulator;
+pub mod protocol;
+pub mod rig;
+pub mod transport;
