@@ -409,7 +409,7 @@ impl Model {
     }
 
     fn simulate(&mut self, seconds: f64) {
-        if !(seconds > 0.0) {
+        if seconds.is_nan() || seconds <= 0.0 {
             return;
         }
         let step = self.config.step.as_secs_f64().max(1e-6);
@@ -631,7 +631,7 @@ fn sync_write_entries(params: &[u8]) -> Option<SyncWriteEntries> {
     let (address, length) = address_and_length(params)?;
     let length = usize::from(length);
     let body = &params[4..];
-    if length == 0 || body.len() % (1 + length) != 0 {
+    if length == 0 || !body.len().is_multiple_of(1 + length) {
         return None;
     }
     let entries = body
