@@ -1,2 +1,79 @@
-//! placeholder, replaced below
-fn main() {}
+//! Forward kinematics per configuration, torsion model, default step (<= 3.5e-5 mm from
+//! the reference tables; see crates/ctr-core/tests/convergence.rs).
+//!
+//! - `warm`: consecutive samples of a smooth trajectory (1 kHz sampling of joint sines
+//!   across the robot's stable ranges), each warm-started from the previous solves.
+//! - `cold`: the 200 scattered configurations of the reference table, no memory.
+//!
+//! Run: `cargo bench --bench fk` (one core is used; criterion reports the median).
+//! Results (this 2-core machine, see README "Performance" for the latest run):
+//! filled in from the run quoted in the README.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ctr_core::{Joints, Model, Robot, Solver};
+use ctr_suite::*;
+use std::hint::black_box;
+use std::time::Duration;
+
+/// Samples of a smooth joint trajectory inside the stable ranges of `shared/data/manifest.json`:
+/// increments `s_i - s_{i-1}` in `[lo, hi]`, rotations over the full circle.
+fn trajectory<const N: usize>(increments: [(f64, f64); N], samples: usize) -> Vec<Joints<f64, N>> {
+    (0..samples)
+        .map(|k| {
+            let t = k as f64 * 1e-3; // 1 kHz
+            let mut s = [0.0; N];
+            let mut theta = [0.0; N];
+            let mut acc = 0.0;
+            for i in 0..N {
+                let (lo, hi) = increments[i];
+                let phase = 0.7 * i as f64;
+                acc += lo + (hi - lo) * 0.5 * (1.0 + (0.9 * t + phase).sin());
+                s[i] = acc;
+                theta[i] = 2.5 * (0.6 * t * (i as f64 + 1.0) + phase).sin();
+            }
+            Joints::new(s, theta)
+        })
+        .collect()
+}
+
+fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64, f64); N]) {
+    let robot: Robot<f64, N> = robot::<N>(name);
+    let path = trajectory(increments, 20_000);
+    let scattered: Vec<Joints<f64, N>> = reference::<N>(name, "torsion").into_iter().map(|r| r.q).collect();
+    let mut group = c.benchmark_group(format!("fk/{name}"));
+    group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2)).sample_size(30);
+    let mut solver = Solver::default();
+    let mut k = 0;
+    group.bench_function("torsion/warm", |b| {
+        b.iter(|| {
+            k = (k + 1) % path.len();
+            if k == 0 {
+                solver.reset();
+            }
+            black_box(solver.solve(&robot, &path[k], Model::Torsion).unwrap().tip.position)
+        })
+    });
+    let cold = Solver::default();
+    let mut j = 0;
+    group.bench_function("torsion/cold", |b| {
+        b.iter(|| {
+            j = (j + 1) % scattered.len();
+            black_box(cold.solve_cold(&robot, &scattered[j], Model::Torsion).unwrap().tip.position)
+        })
+    });
+    group.bench_function("rigid", |b| {
+        b.iter(|| {
+            j = (j + 1) % scattered.len();
+            black_box(cold.solve_cold(&robot, &scattered[j], Model::Rigid).unwrap().tip.position)
+        })
+    });
+    group.finish();
+}
+
+fn fk(c: &mut Criterion) {
+    bench_robot::<2>(c, "nitinol2", [(10.0, 60.0), (10.0, 80.0)]);
+    bench_robot::<3>(c, "nitinol3", [(10.0, 50.0), (10.0, 50.0), (10.0, 50.0)]);
+}
+
+criterion_group!(benches, fk);
+criterion_main!(benches);

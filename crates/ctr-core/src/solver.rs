@@ -55,8 +55,12 @@ pub struct SolverConfig<T> {
     pub step_fraction: T,
     /// Most Newton iterations (integrations with sensitivities) per solve.
     pub max_iterations: u32,
-    /// Newton stops when its step in every base twist rate is below this, rad/mm.
+    /// Newton stops when its step in every base twist rate is below this, rad/mm; the
+    /// pose pass then checks the residual.
     pub step_tolerance_per_mm: T,
+    /// A solve has converged when every free-tip twist rate `|u_i(s_i)|` is below this,
+    /// rad/mm (a torque residual of `G J` times it).
+    pub residual_tolerance_per_mm: T,
 }
 
 /// Default longest RK4 step, mm.
@@ -66,14 +70,27 @@ pub const DEFAULT_STEP_FRACTION: f64 = 0.1;
 /// Default bound on Newton iterations.
 pub const DEFAULT_MAX_ITERATIONS: u32 = 30;
 
+/// Newton step tolerance in `f64`, rad/mm: convergence is quadratic, so the error left
+/// after a step of this size is about its square, and the pose pass verifies it.
+pub const F64_STEP_TOLERANCE: f64 = 1e-6;
+/// Residual tolerance in `f64`, rad/mm: moves the tip by < 1e-8 mm on the shared robots.
+pub const F64_RESIDUAL_TOLERANCE: f64 = 1e-12;
+/// Newton step tolerance in `f32`, rad/mm.
+pub const F32_STEP_TOLERANCE: f64 = 1e-5;
+/// Residual tolerance in `f32`, rad/mm, a decade above the floor `f32` rounding
+/// reaches (1e-10 to 1e-9); leaves < 3e-4 mm at the tip on the shared robots.
+pub const F32_RESIDUAL_TOLERANCE: f64 = 1e-8;
+
 impl<T: Real> Default for SolverConfig<T> {
     fn default() -> Self {
+        // single precision has a 24-bit mantissa: epsilon 1.2e-7
+        let single = T::default_epsilon() > c(1e-10);
         SolverConfig {
             max_step_mm: c(DEFAULT_MAX_STEP_MM),
             step_fraction: c(DEFAULT_STEP_FRACTION),
             max_iterations: DEFAULT_MAX_ITERATIONS,
-            // quadratic convergence: the error after a step of size d is about d^2
-            step_tolerance_per_mm: T::default_epsilon().sqrt() * c(1e-2),
+            step_tolerance_per_mm: c(if single { F32_STEP_TOLERANCE } else { F64_STEP_TOLERANCE }),
+            residual_tolerance_per_mm: c(if single { F32_RESIDUAL_TOLERANCE } else { F64_RESIDUAL_TOLERANCE }),
         }
     }
 }
@@ -301,6 +318,11 @@ impl<T: Real, const N: usize> Solver<T, N> {
     }
 
     /// Newton shooting on the base twist rates, then one pass for the pose.
+    ///
+    /// Newton stops on its step size (`step_tolerance_per_mm`): convergence is
+    /// quadratic, so the error left after a step of size d is about d^2. The pose pass
+    /// integrates the twist once more and measures the residual it leaves; only if that
+    /// exceeds `residual_tolerance_per_mm` does Newton go on.
     fn shoot(
         &self,
         robot: &Robot<T, N>,
@@ -311,71 +333,77 @@ impl<T: Real, const N: usize> Solver<T, N> {
     ) -> Solution<T, N> {
         let m = N - 1;
         let cfg = &self.config;
+        let huge = T::max_value().unwrap_or(T::one());
         let mut x = guess;
-        let mut status = Status::IterationLimit;
         let mut iterations = 0;
-        let mut best = (x, T::max_value().unwrap_or(T::one()));
-        let mut prev_norm = T::max_value().unwrap_or(T::one());
+        let mut best = (x, huge);
+        let mut prev_norm = huge;
         let mut last_step = [T::zero(); N];
         let mut damping = T::one();
-        if m == 0 {
-            status = Status::Converged;
-        }
-        while m > 0 && iterations < cfg.max_iterations {
-            iterations += 1;
-            let (r, jac) = residual::<T, N, true>(robot, q, sections, &x);
-            let norm = max_abs(&r, m);
-            if !norm.is_finite() {
-                status = Status::Diverged;
-                break;
-            }
-            if norm < best.1 {
-                best = (x, norm);
-            }
-            if norm > prev_norm * c(1.5) && damping > c(1.0 / 64.0) {
-                // the last step overshot: go back half way and try again
-                damping *= c(0.5);
-                for i in 0..m {
-                    x[i] += last_step[i] * damping;
+        let mut diverged = false;
+        loop {
+            // Newton until the step is small
+            while m > 0 && iterations < cfg.max_iterations {
+                iterations += 1;
+                let (r, jac) = residual::<T, N, true>(robot, q, sections, &x);
+                let norm = max_abs(&r, m);
+                if !norm.is_finite() {
+                    diverged = true;
+                    break;
                 }
+                if norm < best.1 {
+                    best = (x, norm);
+                }
+                if norm > prev_norm * c(1.5) && damping > c(1.0 / 64.0) {
+                    // the last step overshot: go back half way and try again
+                    damping *= c(0.5);
+                    for i in 0..m {
+                        x[i] += last_step[i] * damping;
+                    }
+                    continue;
+                }
+                prev_norm = norm;
+                damping = T::one();
+                let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
+                    diverged = true;
+                    break;
+                };
+                let mut step = T::zero();
+                for i in 0..m {
+                    x[i] -= dx[i];
+                    last_step[i] = dx[i];
+                    step = step.max(dx[i].abs());
+                }
+                if !step.is_finite() {
+                    diverged = true;
+                    break;
+                }
+                if step <= cfg.step_tolerance_per_mm {
+                    break;
+                }
+            }
+            if diverged || !all_finite(&x) {
+                diverged = true;
+                x = best.0;
+            }
+            sink.written = 0;
+            sink.needed = 0;
+            let mut sol = pose_pass(robot, q, sections, &x, sink);
+            sol.iterations = iterations;
+            let r = sol.residual_per_mm;
+            let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
+            sol.status = if diverged || !finite {
+                Status::Diverged
+            } else if r <= cfg.residual_tolerance_per_mm {
+                Status::Converged
+            } else if iterations < cfg.max_iterations {
+                prev_norm = huge;
                 continue;
-            }
-            prev_norm = norm;
-            damping = T::one();
-            let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
-                status = Status::Diverged;
-                break;
+            } else {
+                Status::IterationLimit
             };
-            let mut step = T::zero();
-            for i in 0..m {
-                x[i] -= dx[i];
-                last_step[i] = dx[i];
-                step = step.max(dx[i].abs());
-            }
-            if !step.is_finite() {
-                status = Status::Diverged;
-                break;
-            }
-            if step <= cfg.step_tolerance_per_mm {
-                status = Status::Converged;
-                break;
-            }
+            return sol;
         }
-        if status != Status::Converged || !all_finite(&x) {
-            x = best.0;
-        }
-        let mut sol = pose_pass(robot, q, sections, &x, sink);
-        sol.iterations = iterations;
-        let r = sol.residual_per_mm;
-        if status == Status::Converged && (r > cfg.step_tolerance_per_mm * c(1e3) || !r.is_finite())
-        {
-            status = Status::IterationLimit;
-        }
-        if !sol.tip.position.iter().all(|v| v.is_finite()) {
-            status = Status::Diverged;
-        }
-        sol.status = status;
-        sol
     }
 }
 
