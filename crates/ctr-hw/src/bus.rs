@@ -698,27 +698,27 @@ impl<T: Transport> Bus<T> {
         address: u16,
         entries: &[(u8, &[u8])],
     ) -> Result<SyncWriteReport, BusError> {
-        self.sync_write_unverified(address, entries)?;
-        let mut report = SyncWriteReport::default();
-        let Some(&(_, first)) = entries.first() else {
-            return Ok(report);
+        let Some(request) = Self::sync_write_request(address, entries)? else {
+            return Ok(SyncWriteReport::default());
         };
-        let length = first.len() as u16; // checked by the encoder
+        self.send(&request)?;
+        let mut report = SyncWriteReport::default();
+        let length = entries[0].1.len() as u16; // checked by the encoder
         let ids: Vec<u8> = entries.iter().map(|&(id, _)| id).collect();
-        let mut first_error = None;
+        let mut alert = None;
         let current: Vec<Result<Vec<u8>, BusError>> = match self.sync_read(&ids, address, length) {
             Ok(values) => values.into_iter().map(Ok).collect(),
             Err(error) => {
                 // One device's alert or silence must not hide the others: ask one by one.
                 if matches!(error, BusError::Alert { .. } | BusError::Device { .. }) {
-                    first_error = Some(error);
+                    alert = Some(error);
                 }
                 ids.iter()
                     .map(|&id| self.read_back(id, address, length))
                     .collect()
             }
         };
-        let mut repair_error = None;
+        let mut first_error = None;
         for (&(id, data), current) in entries.iter().zip(current) {
             match current {
                 Ok(current) if current == data => {}
@@ -726,15 +726,20 @@ impl<T: Transport> Bus<T> {
                     report.resent.push(id);
                     self.stats.sync_write_repairs += 1;
                     if let Err(error) = self.write(id, address, data) {
-                        repair_error.get_or_insert(error);
+                        first_error.get_or_insert(error);
                     }
                 }
-                Err(error) => {
-                    repair_error.get_or_insert(error);
+                Err(source) => {
+                    first_error.get_or_insert(BusError::Unconfirmed {
+                        id,
+                        request: request.clone(),
+                        attempts: 1,
+                        source: Box::new(source),
+                    });
                 }
             }
         }
-        match repair_error.or(first_error) {
+        match first_error.or(alert) {
             Some(error) => Err(error),
             None => Ok(report),
         }
@@ -754,13 +759,24 @@ impl<T: Transport> Bus<T> {
         address: u16,
         entries: &[(u8, &[u8])],
     ) -> Result<(), BusError> {
+        match Self::sync_write_request(address, entries)? {
+            Some(request) => self.send(&request),
+            None => Ok(()),
+        }
+    }
+
+    fn sync_write_request(
+        address: u16,
+        entries: &[(u8, &[u8])],
+    ) -> Result<Option<Request>, BusError> {
         let ids: Vec<u8> = entries.iter().map(|&(id, _)| id).collect();
         check_id_list(&ids)?;
         if entries.is_empty() {
-            return Ok(());
+            return Ok(None);
         }
-        let request = Request::from_packet(&Packet::sync_write(address, entries)?)?;
-        self.send(&request)
+        Ok(Some(Request::from_packet(&Packet::sync_write(
+            address, entries,
+        )?)?))
     }
 
     /// A read used to settle whether a write was applied: an alert status still carries
@@ -1181,6 +1197,36 @@ mod tests {
             instructions(&bus),
             [instruction::SYNC_WRITE, instruction::SYNC_READ, R, R]
         );
+    }
+
+    #[test]
+    fn sync_write_to_a_silent_motor_is_unconfirmed_and_names_the_sync_write() {
+        let goal = 100i32.to_le_bytes();
+        let mut link = MockTransport::new();
+        link.push_silence();
+        for _ in 0..3 {
+            link.push_reply(status(1, 0, &goal)); // ID 2 never answers the sync read
+        }
+        link.push_reply(status(1, 0, &goal));
+        let mut bus = bus(link);
+        let err = bus
+            .sync_write(116, &[(1, &goal[..]), (2, &goal[..])])
+            .unwrap_err();
+        match &err {
+            BusError::Unconfirmed {
+                id: 2,
+                request,
+                source,
+                ..
+            } => {
+                assert_eq!(request.instruction, instruction::SYNC_WRITE);
+                assert!(matches!(**source, BusError::Timeout { id: 2, .. }));
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+        // sync write, 3 sync reads, then one read per motor (3 for the silent one).
+        assert_eq!(bus.transport().written().len(), 1 + 3 + 1 + 3);
+        assert_eq!(bus.stats().sync_write_repairs, 0);
     }
 
     #[test]

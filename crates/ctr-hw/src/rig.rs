@@ -717,6 +717,26 @@ mod tests {
     }
 
     #[test]
+    fn limit_violation_sends_nothing_on_a_mock_bus() {
+        use crate::transport::MockTransport;
+        let bus = Bus::new(MockTransport::new(), BusConfig::default());
+        let mut rig = Rig::new(bus, four_joints(), RigConfig::default());
+        assert!(matches!(
+            rig.move_to(&[0.0, 0.1, 0.0, 0.0]),
+            Err(RigError::Actuation(_))
+        ));
+        assert!(matches!(
+            rig.move_joint("beta2", -31.0),
+            Err(RigError::Actuation(_))
+        ));
+        assert!(matches!(
+            rig.move_to(&[0.0; 3]),
+            Err(RigError::Actuation(ActuationError::CountMismatch { .. }))
+        ));
+        assert!(rig.bus().transport().written().is_empty());
+    }
+
+    #[test]
     fn each_goal_is_applied_exactly_once_even_when_the_broadcast_is_lost() {
         let emu = frozen();
         let mut rig = rig(&emu, RigConfig::default());

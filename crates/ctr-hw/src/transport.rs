@@ -262,6 +262,9 @@ impl Transport for SerialTransport {
     fn write_all(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
         self.port.set_timeout(self.write_timeout)?;
         self.port.write_all(bytes)?;
+        // Wait until the bytes are on the wire, so the response deadline that follows
+        // does not include the transmission of the request.
+        self.port.flush()?;
         Ok(())
     }
 
