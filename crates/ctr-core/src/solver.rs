@@ -89,8 +89,16 @@ impl<T: Real> Default for SolverConfig<T> {
             max_step_mm: c(DEFAULT_MAX_STEP_MM),
             step_fraction: c(DEFAULT_STEP_FRACTION),
             max_iterations: DEFAULT_MAX_ITERATIONS,
-            step_tolerance_per_mm: c(if single { F32_STEP_TOLERANCE } else { F64_STEP_TOLERANCE }),
-            residual_tolerance_per_mm: c(if single { F32_RESIDUAL_TOLERANCE } else { F64_RESIDUAL_TOLERANCE }),
+            step_tolerance_per_mm: c(if single {
+                F32_STEP_TOLERANCE
+            } else {
+                F64_STEP_TOLERANCE
+            }),
+            residual_tolerance_per_mm: c(if single {
+                F32_RESIDUAL_TOLERANCE
+            } else {
+                F64_RESIDUAL_TOLERANCE
+            }),
         }
     }
 }

@@ -46,7 +46,7 @@
 //! equation `g' = g A`, whose sign is opposite to that of `Y' = A Y`).
 
 use crate::real::Real;
-use crate::se3::{exp, Frame};
+use crate::se3::{exp, sin_cos, Frame};
 use crate::sections::Section;
 use nalgebra::Vector3;
 
@@ -266,7 +266,7 @@ pub(crate) fn section<T: Real, const N: usize, const SENS: bool, const POSE: boo
                 if !sec.present[j] {
                     continue;
                 }
-                let (s, co) = ((st.w[j] - un) * h).sin_cos();
+                let (s, co) = sin_cos((st.w[j] - un) * h);
                 let [cj, sj] = st.z[j];
                 st.z[j] = [cj * co - sj * s, sj * co + cj * s];
                 if SENS {
@@ -349,7 +349,7 @@ fn pose_constant_twist<T: Real, const N: usize>(
     let e3 = Vector3::z();
     if sec.curved == 0 {
         frame.position += frame.rotation.column(2) * h;
-        let (s, co) = (un * h).sin_cos();
+        let (s, co) = sin_cos(un * h);
         frame.rotate_z((co, s));
         return;
     }
@@ -362,7 +362,7 @@ fn pose_constant_twist<T: Real, const N: usize>(
     frame.rotate_z((cl, sl));
     let (r, p) = exp(Vector3::new(T::zero(), sec.a[l], ul) * h, e3 * h);
     frame.compose(&r, &p);
-    let (s, co) = ((ul - un) * h).sin_cos();
+    let (s, co) = sin_cos((ul - un) * h);
     let (c2, s2) = (cl * co - sl * s, sl * co + cl * s);
     frame.rotate_z((c2, -s2));
 }

@@ -48,19 +48,52 @@ fn solves_allocate_nothing() {
     let mut solver2 = Solver::default();
     let mut solver_f32 = Solver::<f32, 3>::default();
     let mut points = [ctr_core::nalgebra::Vector3::zeros(); 256];
-    let q_f32: Vec<Joints<f32, 3>> =
-        rows3.iter().map(|r| Joints::new(r.q.s_mm.map(|v| v as f32), r.q.theta_rad.map(|v| v as f32))).collect();
+    let q_f32: Vec<Joints<f32, 3>> = rows3
+        .iter()
+        .map(|r| Joints::new(r.q.s_mm.map(|v| v as f32), r.q.theta_rad.map(|v| v as f32)))
+        .collect();
     let mut checksum = 0.0;
     let n = allocations_during(|| {
         for (r3, r2) in rows3.iter().zip(&rows2) {
-            checksum += solver3.solve(&robot3, &r3.q, Model::Torsion).unwrap().tip.position.x;
-            checksum += solver3.solve_cold(&robot3, &r3.q, Model::Torsion).unwrap().tip.position.y;
-            checksum += solver3.solve(&robot3, &r3.q, Model::Rigid).unwrap().tip.position.z;
-            checksum += solver2.solve(&robot2, &r2.q, Model::Torsion).unwrap().tip.orientation().w;
-            checksum += solver3.solve_backbone(&robot3, &r3.q, Model::Torsion, &mut points).unwrap().0.tip.position.x;
+            checksum += solver3
+                .solve(&robot3, &r3.q, Model::Torsion)
+                .unwrap()
+                .tip
+                .position
+                .x;
+            checksum += solver3
+                .solve_cold(&robot3, &r3.q, Model::Torsion)
+                .unwrap()
+                .tip
+                .position
+                .y;
+            checksum += solver3
+                .solve(&robot3, &r3.q, Model::Rigid)
+                .unwrap()
+                .tip
+                .position
+                .z;
+            checksum += solver2
+                .solve(&robot2, &r2.q, Model::Torsion)
+                .unwrap()
+                .tip
+                .orientation()
+                .w;
+            checksum += solver3
+                .solve_backbone(&robot3, &r3.q, Model::Torsion, &mut points)
+                .unwrap()
+                .0
+                .tip
+                .position
+                .x;
         }
         for q in &q_f32 {
-            checksum += solver_f32.solve(&robot_f32, q, Model::Torsion).unwrap().tip.position.x as f64;
+            checksum += solver_f32
+                .solve(&robot_f32, q, Model::Torsion)
+                .unwrap()
+                .tip
+                .position
+                .x as f64;
         }
     });
     assert!(checksum.is_finite());
