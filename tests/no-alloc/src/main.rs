@@ -13,7 +13,10 @@ fn panic(_: &PanicInfo) -> ! {
 
 fn tube<T: ctr_core::Real>(od: f64, id: f64, len: f64, cl: f64, r: f64) -> TubeParams<T> {
     let c = |v: f64| -> T { nalgebra_convert(v) };
-    TubeParams { curvature_radius_mm: Some(c(r)), ..TubeParams::new(c(od), c(id), c(len), c(cl), c(58000.0), c(0.33)) }
+    TubeParams {
+        curvature_radius_mm: Some(c(r)),
+        ..TubeParams::new(c(od), c(id), c(len), c(cl), c(58000.0), c(0.33))
+    }
 }
 
 fn nalgebra_convert<T: ctr_core::Real>(v: f64) -> T {
@@ -30,7 +33,14 @@ fn solve3<T: ctr_core::Real>(x: T) -> T {
         Err(_) => return T::zero(),
     };
     let mut solver = Solver::default();
-    let q = Joints::new([nalgebra_convert(30.0), nalgebra_convert(60.0), nalgebra_convert(90.0)], [x, x + x, T::zero()]);
+    let q = Joints::new(
+        [
+            nalgebra_convert(30.0),
+            nalgebra_convert(60.0),
+            nalgebra_convert(90.0),
+        ],
+        [x, x + x, T::zero()],
+    );
     let mut pts = [nalgebra_vec(); 32];
     let mut sum = T::zero();
     if let Ok(sol) = solver.solve(&robot, &q, Model::Torsion) {
@@ -47,11 +57,15 @@ fn nalgebra_vec<T: ctr_core::Real>() -> ctr_core::nalgebra::Vector3<T> {
 }
 
 fn solve2(x: f64) -> f64 {
-    let robot = match Robot::new([tube::<f64>(1.8, 1.5, 180.0, 60.0, 200.0), tube::<f64>(1.2, 0.9, 260.0, 90.0, 100.0)]) {
+    let robot = match Robot::new([
+        tube::<f64>(1.8, 1.5, 180.0, 60.0, 200.0),
+        tube::<f64>(1.2, 0.9, 260.0, 90.0, 100.0),
+    ]) {
         Ok(r) => r,
         Err(_) => return 0.0,
     };
-    match Solver::default().solve_cold(&robot, &Joints::new([40.0, 90.0], [0.0, x]), Model::Torsion) {
+    match Solver::default().solve_cold(&robot, &Joints::new([40.0, 90.0], [0.0, x]), Model::Torsion)
+    {
         Ok(sol) => sol.tip.position.z,
         Err(_) => 0.0,
     }
