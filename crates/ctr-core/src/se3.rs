@@ -93,11 +93,25 @@ pub fn exp<T: Real>(omega: Vector3<T>, v: Vector3<T>) -> (Matrix3<T>, Vector3<T>
         let (s, co) = t.sin_cos();
         (s / t, (T::one() - co) / t2, (t - s) / (t2 * t))
     };
-    let w = omega.cross_matrix();
-    let w2 = w * w;
-    let r = Matrix3::identity() + w * a + w2 * b;
-    let vm = Matrix3::identity() + w * b + w2 * d;
-    (r, vm * v)
+    // R = I + a W + b W^2 with W^2 = omega omega^T - t^2 I, element by element
+    let (x, y, z) = (omega.x, omega.y, omega.z);
+    let (ax, ay, az) = (a * x, a * y, a * z);
+    let (bxy, bxz, byz) = (b * x * y, b * x * z, b * y * z);
+    let r = Matrix3::new(
+        T::one() - b * (y * y + z * z),
+        bxy - az,
+        bxz + ay,
+        bxy + az,
+        T::one() - b * (x * x + z * z),
+        byz - ax,
+        bxz - ay,
+        byz + ax,
+        T::one() - b * (x * x + y * y),
+    );
+    // p = V v = v + b omega x v + d omega x (omega x v)
+    let wv = omega.cross(&v);
+    let p = v + wv * b + omega.cross(&wv) * d;
+    (r, p)
 }
 
 /// Below this squared angle (t < 0.3 rad) the Taylor series to `t^10` are exact to

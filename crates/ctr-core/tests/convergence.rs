@@ -91,6 +91,7 @@ fn default_step_meets_contract_with_margin() {
         ),
     ] {
         eprintln!("{name}: max error {e:.3e} mm at step fraction {DEFAULT_STEP_FRACTION}");
+        // the contract is 1e-3 mm: keep a margin of 5 for robots not seen here
         assert!(e < 0.2e-3, "{name}: {e}");
     }
 }
@@ -98,7 +99,7 @@ fn default_step_meets_contract_with_margin() {
 #[test]
 #[ignore = "study printed by hand: cargo test -p ctr-core --test convergence -- --ignored --nocapture"]
 fn study() {
-    for h in [1.6, 0.8, 0.4, 0.3, 0.2, 0.1, 0.05] {
+    for h in [0.3, 0.2, 0.17, 0.15, 0.13, 0.1] {
         eprintln!(
             "h = {h}: liu2023 {:.2e}, nitinol2 {:.2e}, nitinol3 {:.2e}",
             max_error_vs_reference::<2>("liu2023", h),
