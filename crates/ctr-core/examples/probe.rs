@@ -33,5 +33,25 @@ fn main() {
     }
     let t0 = std::time::Instant::now();
     let a = run(&robot, &qs);
-    println!("{a} {:?} per solve", t0.elapsed() / 20000);
+    println!("{a} warm {:?} per solve", t0.elapsed() / 20000);
+    let rows = reference::<3>("nitinol3", "torsion");
+    let t0 = std::time::Instant::now();
+    let mut acc = 0.0;
+    let mut it = [0usize; 12];
+    for _ in 0..100 {
+        for r in &rows {
+            let s = Solver::default()
+                .solve_cold(&robot, &r.q, Model::Torsion)
+                .unwrap();
+            acc += s.tip.position.x;
+            it[s.iterations as usize] += 1;
+        }
+    }
+    println!(
+        "{acc} cold {:?} per solve, iterations {:?}",
+        t0.elapsed() / 20000,
+        it
+    );
 }
+#[allow(dead_code)]
+fn cold_probe() {}

@@ -5,9 +5,14 @@
 //! Between two cuts the set of tubes present and the set of curved tubes are fixed, so
 //! every section has constant coefficients.
 
-use crate::real::Real;
+use crate::real::{c, Real};
 use crate::robot::Robot;
 use crate::MAX_TUBES;
+
+/// How much longer the steps of a cold solve's first Newton iterations are. They bring
+/// the unknowns within the coarse grid's discretisation error of the answer, which one
+/// fine iteration then removes (Newton converges quadratically).
+pub const COARSE_FACTOR: f64 = 4.0;
 
 /// Most cuts a robot of [`MAX_TUBES`] tubes can need: 0, each tip, each curve start.
 pub const MAX_BREAKS: usize = 2 * MAX_TUBES + 1;
@@ -30,6 +35,8 @@ pub(crate) struct Section<T, const N: usize> {
     pub single: usize,
     /// RK4 step for this section, mm (see [`step_length`])
     pub h: T,
+    /// the coarse step of a cold solve's first Newton iterations, mm
+    pub h_coarse: T,
 }
 
 /// Sections of a configuration, in order from the guide exit to the tip.
@@ -77,6 +84,7 @@ impl<T: Real, const N: usize> Sections<T, N> {
             curved: 0,
             single: 0,
             h: T::zero(),
+            h_coarse: T::zero(),
         };
         let mut list = [empty; MAX_BREAKS];
         let mut len = 0;
@@ -108,6 +116,7 @@ impl<T: Real, const N: usize> Sections<T, N> {
                 }
             }
             sec.h = step_length(&sec, h_max, fraction);
+            sec.h_coarse = step_length(&sec, h_max * c(COARSE_FACTOR), fraction * c(COARSE_FACTOR));
             list[len] = sec;
             len += 1;
         }

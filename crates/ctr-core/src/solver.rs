@@ -13,6 +13,7 @@ use crate::real::{c, Real};
 use crate::robot::Robot;
 use crate::se3::{exp, Frame};
 use crate::sections::Sections;
+
 use crate::twist::{self, inner_twist, PointSink, State};
 use nalgebra::Vector3;
 
@@ -63,6 +64,10 @@ pub struct SolverConfig<T> {
     /// rad/mm (a torque residual of `G J` times it).
     pub residual_tolerance_per_mm: T,
 }
+
+/// The coarse phase of a cold solve ends when Newton's step is this many times the
+/// step tolerance: closer than that, the coarse grid's own error dominates.
+const COARSE_STEP_TOLERANCE_FACTOR: f64 = 100.0;
 
 /// Default longest RK4 step, mm.
 pub const DEFAULT_MAX_STEP_MM: f64 = 25.0;
@@ -274,7 +279,8 @@ impl<T: Real, const N: usize> Solver<T, N> {
             Model::Rigid => (rigid(robot, q, &sections, &mut sink), sink.needed),
             Model::Torsion => {
                 let guess = self.guess(q);
-                let sol = self.shoot(robot, q, &sections, guess, &mut sink);
+                let cold = self.warm.count == 0;
+                let sol = self.shoot(robot, q, &sections, guess, cold, &mut sink);
                 if sol.status == Status::Converged {
                     self.remember(q, &sol.base_twist_per_mm);
                 }
@@ -338,9 +344,12 @@ impl<T: Real, const N: usize> Solver<T, N> {
         q: &Joints<T, N>,
         sections: &Sections<T, N>,
         guess: [T; N],
+        cold: bool,
         sink: &mut PointSink<'_, T>,
     ) -> Solution<T, N> {
         let m = N - 1;
+        // a cold start first converges on the coarse grid (cheap), then refines
+        let mut coarse = cold;
         let cfg = &self.config;
         let huge = T::max_value().unwrap_or(T::one());
         let mut x = guess;
@@ -354,7 +363,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             // Newton until the step is small
             while m > 0 && iterations < cfg.max_iterations {
                 iterations += 1;
-                let (r, jac) = residual::<T, N, true>(robot, q, sections, &x);
+                let (r, jac) = residual::<T, N, true>(robot, q, sections, &x, coarse);
                 let norm = max_abs(&r, m);
                 if !norm.is_finite() {
                     diverged = true;
@@ -387,7 +396,11 @@ impl<T: Real, const N: usize> Solver<T, N> {
                     diverged = true;
                     break;
                 }
-                if step <= cfg.step_tolerance_per_mm {
+                if coarse && step <= cfg.step_tolerance_per_mm * c(COARSE_STEP_TOLERANCE_FACTOR) {
+                    coarse = false;
+                    prev_norm = huge;
+                    best.1 = huge;
+                } else if step <= cfg.step_tolerance_per_mm {
                     break;
                 }
             }
@@ -475,6 +488,7 @@ fn residual<T: Real, const N: usize, const SENS: bool>(
     q: &Joints<T, N>,
     sections: &Sections<T, N>,
     x: &[T; N],
+    coarse: bool,
 ) -> ([T; N], [[T; N]; N]) {
     let (mut st, _, _, gj) = initial_state::<T, N, SENS>(robot, q, sections, x);
     let mut r = [T::zero(); N];
@@ -498,7 +512,7 @@ fn residual<T: Real, const N: usize, const SENS: bool>(
         };
     record(&st, T::zero(), &mut done, &mut r, &mut jac);
     for sec in sections.list.iter().take(sections.len) {
-        twist::section::<T, N, SENS, false>(sec, &gj, &mut st, &mut frame, &mut sink);
+        twist::section::<T, N, SENS, false>(sec, coarse, &gj, &mut st, &mut frame, &mut sink);
         record(&st, sec.end, &mut done, &mut r, &mut jac);
     }
     record(
@@ -546,7 +560,7 @@ fn pose_pass<T: Real, const N: usize>(
     };
     record(&st, T::zero(), &mut done, &mut residual);
     for sec in sections.list.iter().take(sections.len) {
-        twist::section::<T, N, false, true>(sec, &gj, &mut st, &mut frame, sink);
+        twist::section::<T, N, false, true>(sec, false, &gj, &mut st, &mut frame, sink);
         record(&st, sec.end, &mut done, &mut residual);
     }
     Solution {

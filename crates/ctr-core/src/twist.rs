@@ -243,6 +243,7 @@ impl<T: Real> PointSink<'_, T> {
 #[inline]
 pub(crate) fn section<T: Real, const N: usize, const SENS: bool, const POSE: bool>(
     sec: &Section<T, N>,
+    coarse: bool,
     gj: &[T; N],
     st: &mut State<T, N>,
     frame: &mut Frame<T>,
@@ -278,7 +279,7 @@ pub(crate) fn section<T: Real, const N: usize, const SENS: bool, const POSE: boo
         }
         return;
     }
-    let n = steps(len, sec.h);
+    let n = steps(len, if coarse { sec.h_coarse } else { sec.h });
     let h = len / nalgebra::convert::<f64, T>(n as f64);
     let half = h * nalgebra::convert(0.5);
     let sixth = h / nalgebra::convert(6.0);
