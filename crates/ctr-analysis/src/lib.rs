@@ -1,2 +1,35 @@
-//! The std layer shared by the CLI and the Python wheel: file formats, batch solving,
-//! inverse kinematics, fitting and diagnosis.
+//! The std layer shared by the CLI and the Python wheel: file formats and batch forward
+//! kinematics (inverse kinematics, fitting and diagnosis will follow).
+//!
+//! Data flows one way: files ([`formats`]) -> a validated robot ([`AnyRobot`], the
+//! core's `Robot<f64, N>` for a tube count known at run time) and checked joints ->
+//! core solves ([`batch`], parallel, thread-count independent) -> tip files. [`job`]
+//! strings these together for `ctr-cli fk`. All numerics are the core's; this crate
+//! only reads, dispatches and writes.
+//!
+//! ```
+//! use ctr_analysis::formats::RobotSpec;
+//! let spec = RobotSpec::from_toml_str(r#"
+//! [[tube]]
+//! outer_diameter_mm = 1.2
+//! inner_diameter_mm = 0.9
+//! length_mm = 260.0
+//! curved_length_mm = 90.0
+//! curvature_radius_mm = 100.0
+//! youngs_modulus_mpa = 58000.0
+//! poisson_ratio = 0.33
+//! "#, "robot.toml")?;
+//! let fk = spec.robot.fk(&[50.0, 0.0], spec.model)?;
+//! // an arc of radius 100 mm over 50 mm bends toward +x
+//! assert!((fk.position[0] - 100.0 * (1.0 - 0.5_f64.cos())).abs() < 1e-9);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub mod batch;
+mod error;
+pub mod formats;
+pub mod job;
+mod robot;
+
+pub use error::{status_name, Error, ErrorKind, Location};
+pub use robot::{canonical_quaternion, joint_columns, AnyRobot, FkResult, FkSolver};

@@ -1,0 +1,254 @@
+//! One error type for everything read or written: where it happened and what was wrong.
+//!
+//! Every [`Error`] displays as a single line, `file[:line[:column]]: what was found and
+//! what was wanted`, for example
+//! `joints.csv:17: column theta2_deg: "abc" is not a number` or
+//! `robot.toml:12:1: unknown field `youngs_modulus`, expected one of ...`.
+//! Lines are 1-based and count the CSV header as line 1.
+
+use ctr_core::{JointError, RobotError, Status};
+use std::fmt;
+
+/// Where in an input (or output) an error is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Location {
+    /// The file as the user named it (`<stdin>` / `<stdout>` for the streams).
+    pub file: String,
+    /// 1-based line, when known.
+    pub line: Option<usize>,
+    /// 1-based column (characters for TOML), when known.
+    pub column: Option<usize>,
+}
+
+impl Location {
+    /// A whole file.
+    pub fn file(file: impl Into<String>) -> Self {
+        Location {
+            file: file.into(),
+            line: None,
+            column: None,
+        }
+    }
+
+    /// A line of a file.
+    pub fn line(file: impl Into<String>, line: usize) -> Self {
+        Location {
+            file: file.into(),
+            line: Some(line),
+            column: None,
+        }
+    }
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.file)?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+            if let Some(col) = self.column {
+                write!(f, ":{col}")?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What went wrong; displayed after the [`Location`].
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// Reading, creating, writing or renaming failed.
+    #[error("cannot {action}: {source}")]
+    Io {
+        /// what was being done ("read", "create the output in", ...)
+        action: &'static str,
+        /// the operating system's error
+        #[source]
+        source: std::io::Error,
+    },
+    /// The TOML is malformed or does not have the expected shape (unknown key, missing
+    /// field, wrong type).
+    #[error("{message}")]
+    Toml {
+        /// the parser's message, made one line
+        message: String,
+    },
+    /// The tube parameters are refused by the core (the message names tube and field).
+    #[error("{0}")]
+    Robot(RobotError),
+    /// An effect table is present that the core cannot model yet.
+    #[error("model.effects.{effect}: the {effect} effect is not supported yet (ctr-core models rigid and torsion only); remove the table")]
+    UnsupportedEffect {
+        /// the effect's id (`gravity`, `friction`, ...)
+        effect: &'static str,
+    },
+    /// `[limits]` has a different number of `[[limits.tube]]` tables than the robot has tubes.
+    #[error("limits: {found} [[limits.tube]] table{}, the robot has {expected} tube{}", if *.found == 1 { "" } else { "s" }, if *.expected == 1 { "" } else { "s" })]
+    LimitsCount {
+        /// the robot's tube count
+        expected: usize,
+        /// tables found
+        found: usize,
+    },
+    /// A `[min, max]` range of `[limits]` is not finite or has `min > max`.
+    #[error("limits.tube {tube}: {key} = [{min}, {max}] must be finite with min <= max")]
+    BadLimit {
+        /// tube number, 1 = outermost
+        tube: usize,
+        /// the key (`s_mm`, `increment_mm`, `theta_deg`)
+        key: &'static str,
+        /// lower bound found
+        min: f64,
+        /// upper bound found
+        max: f64,
+    },
+    /// The directory an output file is to be written in does not exist.
+    #[error("directory {dir} does not exist")]
+    OutputDirectory {
+        /// the directory
+        dir: String,
+    },
+    /// A CSV file has no header at all.
+    #[error("empty file, expected a header with {expected}")]
+    EmptyFile {
+        /// the required columns, comma separated
+        expected: String,
+    },
+    /// A required column is not in the header.
+    #[error("missing column {name}{}", match .similar {
+        Some(s) => format!(" (found \"{s}\": did you mean {name}?)"),
+        None => format!(" (the header needs {})", .required),
+    })]
+    MissingColumn {
+        /// the column wanted
+        name: String,
+        /// a header name close to it, probably misspelt
+        similar: Option<String>,
+        /// all required columns, comma separated
+        required: String,
+    },
+    /// Two header columns have the same name.
+    #[error("column {name} appears twice")]
+    DuplicateColumn {
+        /// the repeated name
+        name: String,
+    },
+    /// A joint column for a tube the robot does not have (wrong robot file?).
+    #[error("column {name}: the robot has {n_tubes} tube{}", if *.n_tubes == 1 { "" } else { "s" })]
+    ColumnBeyondRobot {
+        /// the column
+        name: String,
+        /// the robot's tube count
+        n_tubes: usize,
+    },
+    /// An input column has the name of a column the output adds.
+    #[error("column {name} clashes with the output column of that name; rename or drop it")]
+    OutputColumnClash {
+        /// the column
+        name: String,
+    },
+    /// A joint cell does not parse as a number.
+    #[error("column {column}: \"{found}\" is not a number")]
+    NotANumber {
+        /// the column
+        column: String,
+        /// the cell as found
+        found: String,
+    },
+    /// A joint cell is NaN or infinite.
+    #[error("column {column}: \"{found}\" is not a finite number")]
+    NotFinite {
+        /// the column
+        column: String,
+        /// the cell as found
+        found: String,
+    },
+    /// A row has a different number of fields than the header.
+    #[error("row has {found} field{}, the header has {expected}", if *.found == 1 { "" } else { "s" })]
+    RaggedRow {
+        /// fields in this row
+        found: usize,
+        /// fields in the header
+        expected: usize,
+    },
+    /// Other CSV trouble (invalid UTF-8, ...).
+    #[error("{message}")]
+    Csv {
+        /// the csv crate's message
+        message: String,
+    },
+    /// Joint values the robot cannot take (the message names the column).
+    #[error("{0}")]
+    Joint(JointError),
+    /// A solve did not converge and the policy is to fail; the location is the first such row.
+    #[error("solve ended with status {} (residual_per_mm = {residual_per_mm}); {failed} of {rows} row{} failed", status_name(*.status), if *.rows == 1 { "" } else { "s" })]
+    SolverFailed {
+        /// status of the first failed row
+        status: Status,
+        /// its residual, rad/mm
+        residual_per_mm: f64,
+        /// rows that failed
+        failed: usize,
+        /// rows solved
+        rows: usize,
+    },
+}
+
+/// An error with its location; displays as one line. (Boxed: errors are rare and the
+/// `Result`s that carry them stay small.)
+#[derive(Debug)]
+pub struct Error(Box<Inner>);
+
+#[derive(Debug)]
+struct Inner {
+    location: Location,
+    kind: ErrorKind,
+}
+
+impl Error {
+    /// An error at `location`.
+    pub fn new(location: Location, kind: ErrorKind) -> Self {
+        Error(Box::new(Inner { location, kind }))
+    }
+
+    /// Where.
+    pub fn location(&self) -> &Location {
+        &self.0.location
+    }
+
+    /// What.
+    pub fn kind(&self) -> &ErrorKind {
+        &self.0.kind
+    }
+
+    /// True when the input was fine but solves did not converge (the CLI exits 1, not 2).
+    pub fn is_solver_failure(&self) -> bool {
+        matches!(self.0.kind, ErrorKind::SolverFailed { .. })
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.0.location, self.0.kind)
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        std::error::Error::source(&self.0.kind)
+    }
+}
+
+/// The name of a status as written in files and messages: `converged`,
+/// `iteration_limit`, `diverged`.
+///
+/// ```
+/// assert_eq!(ctr_analysis::status_name(ctr_core::Status::IterationLimit), "iteration_limit");
+/// ```
+pub fn status_name(status: Status) -> &'static str {
+    match status {
+        Status::Converged => "converged",
+        Status::IterationLimit => "iteration_limit",
+        Status::Diverged => "diverged",
+    }
+}

@@ -1,0 +1,598 @@
+//! The robot TOML: its serde mirror [`RobotFile`] and the validated [`RobotSpec`].
+//!
+//! The shape is documented in [the module above](super).
+
+use crate::error::{Error, ErrorKind, Location};
+use crate::robot::AnyRobot;
+use ctr_core::{Model, RobotError, TubeParams};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The robot TOML as written, before validation. Unknown keys are refused.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotFile {
+    /// The robot's name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The tubes, outermost first (`[[tube]]`).
+    pub tube: Vec<TubeFile>,
+    /// `[model]`: which mechanics to solve with (extension; default `torsion`, no effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<ModelSection>,
+    /// `[limits]`: joint ranges, one `[[limits.tube]]` per tube (extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub limits: Option<LimitsSection>,
+}
+
+/// One `[[tube]]` table: the fields of [`TubeParams`] plus an optional name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TubeFile {
+    /// The tube's name (`outer`, `inner`, ...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Outer diameter, mm.
+    pub outer_diameter_mm: f64,
+    /// Inner diameter, mm.
+    pub inner_diameter_mm: f64,
+    /// Whole length from actuator to tip, mm.
+    pub length_mm: f64,
+    /// Length of the precurved distal part, mm.
+    pub curved_length_mm: f64,
+    /// Signed radius of the precurved part, mm; absent for a straight tube.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curvature_radius_mm: Option<f64>,
+    /// Young's modulus, MPa.
+    pub youngs_modulus_mpa: f64,
+    /// Poisson ratio.
+    pub poisson_ratio: f64,
+    /// Measured bending stiffness E I, N mm^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bending_stiffness_nmm2: Option<f64>,
+    /// Measured torsional stiffness G J, N mm^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub torsional_stiffness_nmm2: Option<f64>,
+    /// Density, kg/m^3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density_kg_m3: Option<f64>,
+}
+
+impl TubeFile {
+    /// The core's parameters (the name is dropped).
+    pub fn params(&self) -> TubeParams<f64> {
+        TubeParams {
+            outer_diameter_mm: self.outer_diameter_mm,
+            inner_diameter_mm: self.inner_diameter_mm,
+            length_mm: self.length_mm,
+            curved_length_mm: self.curved_length_mm,
+            curvature_radius_mm: self.curvature_radius_mm,
+            youngs_modulus_mpa: self.youngs_modulus_mpa,
+            poisson_ratio: self.poisson_ratio,
+            bending_stiffness_nmm2: self.bending_stiffness_nmm2,
+            torsional_stiffness_nmm2: self.torsional_stiffness_nmm2,
+            density_kg_m3: self.density_kg_m3,
+        }
+    }
+
+    /// A table from the core's parameters and a name.
+    pub fn from_params(name: Option<String>, p: &TubeParams<f64>) -> Self {
+        TubeFile {
+            name,
+            outer_diameter_mm: p.outer_diameter_mm,
+            inner_diameter_mm: p.inner_diameter_mm,
+            length_mm: p.length_mm,
+            curved_length_mm: p.curved_length_mm,
+            curvature_radius_mm: p.curvature_radius_mm,
+            youngs_modulus_mpa: p.youngs_modulus_mpa,
+            poisson_ratio: p.poisson_ratio,
+            bending_stiffness_nmm2: p.bending_stiffness_nmm2,
+            torsional_stiffness_nmm2: p.torsional_stiffness_nmm2,
+            density_kg_m3: p.density_kg_m3,
+        }
+    }
+}
+
+/// `[model]`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSection {
+    /// `kind = "rigid" | "torsion"`, default `torsion`.
+    #[serde(default)]
+    pub kind: ModelKind,
+    /// `[model.effects]`: effects beyond the base model.
+    #[serde(default, skip_serializing_if = "Effects::is_empty")]
+    pub effects: Effects,
+}
+
+/// The base model of `[model] kind`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    /// Torsionally rigid tubes.
+    Rigid,
+    /// Torsionally compliant tubes.
+    #[default]
+    Torsion,
+}
+
+impl From<ModelKind> for Model {
+    fn from(k: ModelKind) -> Model {
+        match k {
+            ModelKind::Rigid => Model::Rigid,
+            ModelKind::Torsion => Model::Torsion,
+        }
+    }
+}
+
+impl From<Model> for ModelKind {
+    fn from(m: Model) -> ModelKind {
+        match m {
+            Model::Rigid => ModelKind::Rigid,
+            Model::Torsion => ModelKind::Torsion,
+        }
+    }
+}
+
+/// `[model.effects]`: one optional table per effect id of the formats contract. Only the
+/// keys listed here are accepted; any table present is refused at validation with
+/// "not supported yet" until the core models that effect. `gravity` already has its
+/// typed shape (that of the reference simulator's manifest); the others accept any
+/// table for now and get their shape when the core gains them.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Effects {
+    /// `friction`: inter-tube friction (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<toml::Table>,
+    /// `clearance`: deflection at tube exits through the clearance (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance: Option<toml::Table>,
+    /// `gravity`: the tubes' own weight.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<Gravity>,
+    /// `registration`: tracker frame offset from W (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub registration: Option<toml::Table>,
+    /// `joint_offset`: actuator zero offsets (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_offset: Option<toml::Table>,
+    /// `stiffness`: stiffness scale factors (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<toml::Table>,
+    /// `precurvature`: precurvature scale factors (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub precurvature: Option<toml::Table>,
+    /// `latency`: time lag between commanded joints and measured tip (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency: Option<toml::Table>,
+    /// `sensor_offset`: tracked point offset in the tip frame (reserved).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_offset: Option<toml::Table>,
+}
+
+impl Effects {
+    /// The ids of the effect tables present, in declaration order.
+    pub fn present(&self) -> Vec<&'static str> {
+        let Effects {
+            friction,
+            clearance,
+            gravity,
+            registration,
+            joint_offset,
+            stiffness,
+            precurvature,
+            latency,
+            sensor_offset,
+        } = self;
+        [
+            ("friction", friction.is_some()),
+            ("clearance", clearance.is_some()),
+            ("gravity", gravity.is_some()),
+            ("registration", registration.is_some()),
+            ("joint_offset", joint_offset.is_some()),
+            ("stiffness", stiffness.is_some()),
+            ("precurvature", precurvature.is_some()),
+            ("latency", latency.is_some()),
+            ("sensor_offset", sensor_offset.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(id, on)| on.then_some(id))
+        .collect()
+    }
+
+    /// True when no effect table is present.
+    pub fn is_empty(&self) -> bool {
+        self.present().is_empty()
+    }
+}
+
+/// `[model.effects.gravity]`: uniform gravity on the exposed tubes (needs each tube's
+/// `density_kg_m3`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Gravity {
+    /// Unit direction of gravity in W (`direction_W`).
+    #[serde(rename = "direction_W", deserialize_with = "exact")]
+    pub direction_w: [f64; 3],
+    /// Acceleration, m/s^2 (default 9.81).
+    #[serde(default = "standard_gravity")]
+    pub g_m_s2: f64,
+}
+
+/// An array of exactly `N` numbers (serde's own arrays ignore extra elements).
+fn exact<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+    let v = Vec::<f64>::deserialize(d)?;
+    let len = v.len();
+    v.try_into().map_err(|_| {
+        serde::de::Error::invalid_length(len, &format!("an array of {N} numbers").as_str())
+    })
+}
+
+fn exact_opt<'de, D: serde::Deserializer<'de>, const N: usize>(
+    d: D,
+) -> Result<Option<[f64; N]>, D::Error> {
+    exact(d).map(Some)
+}
+
+fn standard_gravity() -> f64 {
+    9.81
+}
+
+/// `[limits]`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsSection {
+    /// `[[limits.tube]]`, one per tube, outermost first.
+    pub tube: Vec<TubeLimits>,
+}
+
+/// One `[[limits.tube]]`: closed `[min, max]` ranges, each optional (absent = free).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TubeLimits {
+    /// Feed `s_i`, mm.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "exact_opt"
+    )]
+    pub s_mm: Option<[f64; 2]>,
+    /// Increment `s_i - s_{i-1}` (with `s_0 = 0`), mm.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "exact_opt"
+    )]
+    pub increment_mm: Option<[f64; 2]>,
+    /// Rotation `theta_i`, degrees.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "exact_opt"
+    )]
+    pub theta_deg: Option<[f64; 2]>,
+}
+
+impl TubeLimits {
+    /// The first range this tube's joints leave, as `(key, value)`; `None` when inside all.
+    /// `s_prev` is the enclosing tube's feed (0 for tube 1).
+    ///
+    /// ```
+    /// use ctr_analysis::formats::TubeLimits;
+    /// let l = TubeLimits { s_mm: Some([20.0, 70.0]), increment_mm: None, theta_deg: None };
+    /// assert_eq!(l.violation(10.0, 0.0, 0.0), Some(("s_mm", 10.0)));
+    /// assert_eq!(l.violation(30.0, 0.0, 0.0), None);
+    /// ```
+    pub fn violation(&self, s_mm: f64, theta_deg: f64, s_prev: f64) -> Option<(&'static str, f64)> {
+        let outside =
+            |r: Option<[f64; 2]>, v: f64| r.is_some_and(|[lo, hi]| !(lo..=hi).contains(&v));
+        if outside(self.s_mm, s_mm) {
+            Some(("s_mm", s_mm))
+        } else if outside(self.increment_mm, s_mm - s_prev) {
+            Some(("increment_mm", s_mm - s_prev))
+        } else if outside(self.theta_deg, theta_deg) {
+            Some(("theta_deg", theta_deg))
+        } else {
+            None
+        }
+    }
+}
+
+/// A validated robot description: the core robot, the model to solve with, the limits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobotSpec {
+    /// The robot's name.
+    pub name: Option<String>,
+    /// Each tube's name, outermost first.
+    pub tube_names: Vec<Option<String>>,
+    /// The validated tubes.
+    pub robot: AnyRobot,
+    /// `[model] kind` (no effects are supported yet).
+    pub model: Model,
+    /// `[limits]`, one entry per tube, every range finite with `min <= max`.
+    pub limits: Option<Vec<TubeLimits>>,
+}
+
+/// A key path in the TOML document, for locating semantic errors.
+enum Key {
+    Name(&'static str),
+    Index(usize),
+}
+
+impl RobotFile {
+    /// Parses TOML text; `file` names it in errors, which carry line and column.
+    pub fn parse(text: &str, file: &str) -> Result<RobotFile, Error> {
+        toml::from_str(text).map_err(|e| {
+            let mut location = Location::file(file);
+            let mut message = one_line(e.message());
+            if let Some(span) = e.span() {
+                let (line, col) = line_col(text, span.start);
+                location.line = Some(line);
+                location.column = Some(col);
+                if let Some(path) = path_at(text, span.start) {
+                    message = format!("{path}: {message}");
+                }
+            }
+            Error::new(location, ErrorKind::Toml { message })
+        })
+    }
+
+    /// Serializes to TOML (tubes first, then `[model]` and `[limits]`).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a RobotFile always serializes")
+    }
+
+    /// Validates with the core; errors name `file` but no line (see
+    /// [`RobotSpec::from_toml_str`] for errors with lines).
+    pub fn validate(&self, file: &str) -> Result<RobotSpec, Error> {
+        self.check()
+            .map_err(|(kind, _)| Error::new(Location::file(file), kind))
+    }
+
+    fn check(&self) -> Result<RobotSpec, (ErrorKind, Vec<Key>)> {
+        use Key::{Index, Name};
+        let params: Vec<TubeParams<f64>> = self.tube.iter().map(TubeFile::params).collect();
+        let robot = AnyRobot::new(&params).map_err(|e| {
+            let path = match robot_error_key(&e) {
+                Some((tube, key)) => vec![Name("tube"), Index(tube - 1), Name(key)],
+                None => vec![],
+            };
+            (ErrorKind::Robot(e), path)
+        })?;
+        let section = self.model.clone().unwrap_or_default();
+        if let Some(effect) = section.effects.present().first() {
+            return Err((
+                ErrorKind::UnsupportedEffect { effect },
+                vec![Name("model"), Name("effects"), Name(effect)],
+            ));
+        }
+        let limits = match &self.limits {
+            None => None,
+            Some(l) => {
+                if l.tube.len() != params.len() {
+                    return Err((
+                        ErrorKind::LimitsCount {
+                            expected: params.len(),
+                            found: l.tube.len(),
+                        },
+                        vec![Name("limits")],
+                    ));
+                }
+                for (i, t) in l.tube.iter().enumerate() {
+                    for (key, range) in [
+                        ("s_mm", t.s_mm),
+                        ("increment_mm", t.increment_mm),
+                        ("theta_deg", t.theta_deg),
+                    ] {
+                        if let Some([min, max]) = range {
+                            if !(min.is_finite() && max.is_finite() && min <= max) {
+                                return Err((
+                                    ErrorKind::BadLimit {
+                                        tube: i + 1,
+                                        key,
+                                        min,
+                                        max,
+                                    },
+                                    vec![Name("limits"), Name("tube"), Index(i), Name(key)],
+                                ));
+                            }
+                        }
+                    }
+                }
+                Some(l.tube.clone())
+            }
+        };
+        Ok(RobotSpec {
+            name: self.name.clone(),
+            tube_names: self.tube.iter().map(|t| t.name.clone()).collect(),
+            robot,
+            model: section.kind.into(),
+            limits,
+        })
+    }
+}
+
+/// The tube number and TOML key a core error is about.
+fn robot_error_key(e: &RobotError) -> Option<(usize, &'static str)> {
+    Some(match *e {
+        RobotError::NotFinite { tube, field } => (tube, field.key()),
+        RobotError::NotPositive { tube, field, .. } => (tube, field.key()),
+        RobotError::Negative { tube, field, .. } => (tube, field.key()),
+        RobotError::WallNotPositive { tube, .. } => (tube, "outer_diameter_mm"),
+        RobotError::DoNotNest { inner, .. } => (inner, "outer_diameter_mm"),
+        RobotError::CurvedLongerThanTube { tube, .. } => (tube, "curved_length_mm"),
+        RobotError::PoissonOutOfRange { tube, .. } => (tube, "poisson_ratio"),
+        RobotError::ZeroRadius { tube } => (tube, "curvature_radius_mm"),
+        RobotError::TubeCount { .. } => return None,
+    })
+}
+
+impl RobotSpec {
+    /// Parses and validates TOML text; `file` names it in errors, which carry the line
+    /// and column of the offending value.
+    ///
+    /// ```
+    /// let text = "[[tube]]\nouter_diameter_mm = 1.8\ninner_diameter_mm = 1.9\nlength_mm = 100.0\n\
+    ///             curved_length_mm = 50.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n";
+    /// let err = ctr_analysis::formats::RobotSpec::from_toml_str(text, "r.toml").unwrap_err();
+    /// assert_eq!(err.to_string(), "r.toml:2:21: tube 1: outer_diameter_mm = 1.8 must be larger than inner_diameter_mm = 1.9");
+    /// ```
+    pub fn from_toml_str(text: &str, file: &str) -> Result<RobotSpec, Error> {
+        let parsed = RobotFile::parse(text, file)?;
+        parsed.check().map_err(|(kind, path)| {
+            let mut location = Location::file(file);
+            if let Some(start) = span_of(text, &path) {
+                let (line, col) = line_col(text, start);
+                location.line = Some(line);
+                location.column = Some(col);
+            }
+            Error::new(location, kind)
+        })
+    }
+
+    /// Reads, parses and validates a robot file; errors name the path as given.
+    pub fn from_path(path: &Path) -> Result<RobotSpec, Error> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| {
+            Error::new(
+                Location::file(&file),
+                ErrorKind::Io {
+                    action: "read",
+                    source,
+                },
+            )
+        })?;
+        RobotSpec::from_toml_str(&text, &file)
+    }
+
+    /// Back to the file form (with an explicit `[model]`), e.g. to save a fitted robot.
+    pub fn to_file(&self) -> RobotFile {
+        RobotFile {
+            name: self.name.clone(),
+            tube: self
+                .robot
+                .tube_params()
+                .iter()
+                .enumerate()
+                .map(|(i, p)| TubeFile::from_params(self.tube_names.get(i).cloned().flatten(), p))
+                .collect(),
+            model: Some(ModelSection {
+                kind: self.model.into(),
+                effects: Effects::default(),
+            }),
+            limits: self.limits.clone().map(|tube| LimitsSection { tube }),
+        }
+    }
+
+    /// The robot file's TOML text.
+    pub fn to_toml(&self) -> String {
+        self.to_file().to_toml()
+    }
+}
+
+/// Byte offset of the value at `path`, if the document parses and has it.
+fn span_of(text: &str, path: &[Key]) -> Option<usize> {
+    if path.is_empty() {
+        return None;
+    }
+    let doc = toml::de::DeTable::parse(text).ok()?;
+    let root = toml::de::DeValue::Table(doc.into_inner());
+    let mut cur = &root;
+    let mut span = None;
+    for k in path {
+        let next = match k {
+            Key::Name(n) => cur.get(*n)?,
+            Key::Index(i) => cur.get(*i)?,
+        };
+        span = Some(next.span().start);
+        cur = next.get_ref();
+    }
+    span
+}
+
+/// Where byte offset `at` is in the document, as `tube 2: length_mm` or `model.kind`:
+/// the tables and arrays holding it and the key whose value holds it (not a key whose
+/// name holds it: an unknown key is named by the message). `None` if the document does
+/// not parse (then the error is a syntax error and the position says it all).
+fn path_at(text: &str, at: usize) -> Option<String> {
+    use toml::de::DeValue;
+    let doc = toml::de::DeTable::parse(text).ok()?;
+    let root = DeValue::Table(doc.into_inner());
+    let mut out = String::new();
+    let mut after_index = false;
+    let mut cur = &root;
+    loop {
+        match cur {
+            DeValue::Table(t) => {
+                let Some((k, v)) = t
+                    .iter()
+                    .find(|(k, v)| extent(v).contains(&at) && !k.span().contains(&at))
+                else {
+                    break;
+                };
+                if after_index {
+                    out.push_str(": ");
+                } else if !out.is_empty() {
+                    out.push('.');
+                }
+                out.push_str(k.get_ref());
+                after_index = false;
+                cur = v.get_ref();
+            }
+            DeValue::Array(a) => {
+                let Some((i, v)) = a.iter().enumerate().find(|(_, v)| extent(v).contains(&at))
+                else {
+                    break;
+                };
+                out.push_str(&format!(" {}", i + 1));
+                after_index = true;
+                cur = v.get_ref();
+            }
+            _ => break,
+        }
+    }
+    (!out.is_empty()).then_some(out)
+}
+
+/// The text a value covers: a table's own span covers only its header (and an array of
+/// tables' only its first header), so entries and elements extend it.
+fn extent(v: &toml::Spanned<toml::de::DeValue<'_>>) -> std::ops::Range<usize> {
+    let span = v.span();
+    match v.get_ref() {
+        toml::de::DeValue::Table(t) => {
+            let end = t
+                .iter()
+                .flat_map(|(k, v)| [k.span().end, extent(v).end])
+                .fold(span.end, usize::max);
+            let start = t
+                .iter()
+                .map(|(k, _)| k.span().start)
+                .fold(span.start, usize::min);
+            start..end
+        }
+        toml::de::DeValue::Array(a) => a
+            .iter()
+            .map(extent)
+            .fold(span, |acc, r| acc.start.min(r.start)..acc.end.max(r.end)),
+        _ => span,
+    }
+}
+
+/// 1-based line and column (in characters) of byte offset `at`.
+pub(crate) fn line_col(text: &str, at: usize) -> (usize, usize) {
+    let at = at.min(text.len());
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    (line, before[line_start..].chars().count() + 1)
+}
+
+/// Joins a multi-line message into one line.
+pub(crate) fn one_line(s: &str) -> String {
+    s.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join("; ")
+}
