@@ -5,9 +5,18 @@
 //!   across the robot's stable ranges), each warm-started from the previous solves.
 //! - `cold`: the 200 scattered configurations of the reference table, no memory.
 //!
-//! Run: `cargo bench --bench fk` (one core is used; criterion reports the median).
-//! Results (this 2-core machine, see README "Performance" for the latest run):
-//! filled in from the run quoted in the README.
+//! Run: `taskset -c 1 cargo bench --bench fk` (one core; criterion reports the median).
+//!
+//! Measured 2026-11-21, 2-core AMD EPYC VM (shared, noisy), default solver settings
+//! (tip within 1.1e-4 mm of the reference tables), medians:
+//!
+//! | bench                     | nitinol2 | nitinol3 |
+//! |---------------------------|----------|----------|
+//! | torsion/warm (trajectory) | 0.47 us  | 0.91 us  |
+//! | torsion/cold (scattered)  | 0.75 us  | 1.70 us  |
+//! | rigid                     | 0.23 us  | 0.37 us  |
+//!
+//! Targets for 3 tubes: warm <= 1 us, cold <= 2 us.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ctr_core::{Joints, Model, Robot, Solver};
