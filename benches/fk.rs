@@ -48,9 +48,15 @@ fn trajectory<const N: usize>(increments: [(f64, f64); N], samples: usize) -> Ve
 fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64, f64); N]) {
     let robot: Robot<f64, N> = robot::<N>(name);
     let path = trajectory(increments, 20_000);
-    let scattered: Vec<Joints<f64, N>> = reference::<N>(name, "torsion").into_iter().map(|r| r.q).collect();
+    let scattered: Vec<Joints<f64, N>> = reference::<N>(name, "torsion")
+        .into_iter()
+        .map(|r| r.q)
+        .collect();
     let mut group = c.benchmark_group(format!("fk/{name}"));
-    group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2)).sample_size(30);
+    group
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .sample_size(30);
     let mut solver = Solver::default();
     let mut k = 0;
     group.bench_function("torsion/warm", |b| {
@@ -59,7 +65,13 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
             if k == 0 {
                 solver.reset();
             }
-            black_box(solver.solve(&robot, &path[k], Model::Torsion).unwrap().tip.position)
+            black_box(
+                solver
+                    .solve(&robot, &path[k], Model::Torsion)
+                    .unwrap()
+                    .tip
+                    .position,
+            )
         })
     });
     let cold = Solver::default();
@@ -67,13 +79,23 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
     group.bench_function("torsion/cold", |b| {
         b.iter(|| {
             j = (j + 1) % scattered.len();
-            black_box(cold.solve_cold(&robot, &scattered[j], Model::Torsion).unwrap().tip.position)
+            black_box(
+                cold.solve_cold(&robot, &scattered[j], Model::Torsion)
+                    .unwrap()
+                    .tip
+                    .position,
+            )
         })
     });
     group.bench_function("rigid", |b| {
         b.iter(|| {
             j = (j + 1) % scattered.len();
-            black_box(cold.solve_cold(&robot, &scattered[j], Model::Rigid).unwrap().tip.position)
+            black_box(
+                cold.solve_cold(&robot, &scattered[j], Model::Rigid)
+                    .unwrap()
+                    .tip
+                    .position,
+            )
         })
     });
     group.finish();
