@@ -31,7 +31,9 @@
 /// The linear algebra crate the core is built on (its types appear in the API).
 pub use nalgebra;
 
+pub mod dual;
 pub mod joints;
+pub mod loads;
 mod real;
 pub mod robot;
 pub mod se3;
@@ -40,6 +42,7 @@ pub mod solver;
 pub mod twist;
 
 pub use joints::{JointError, JointKind, Joints};
+pub use loads::{Gravity, LoadError, Loads};
 pub use real::Real;
 pub use robot::{Field, Robot, RobotError, Tube, TubeParams};
 pub use se3::Frame;

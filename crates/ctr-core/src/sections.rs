@@ -37,6 +37,8 @@ pub(crate) struct Section<T, const N: usize> {
     pub h: T,
     /// the coarse step of a cold solve's first Newton iterations, mm
     pub h_coarse: T,
+    /// `1 / sum(E I present)`, 1/(N mm^2)
+    pub inv_k: T,
 }
 
 /// Sections of a configuration, in order from the guide exit to the tip.
@@ -85,6 +87,7 @@ impl<T: Real, const N: usize> Sections<T, N> {
             single: 0,
             h: T::zero(),
             h_coarse: T::zero(),
+            inv_k: T::zero(),
         };
         let mut list = [empty; MAX_BREAKS];
         let mut len = 0;
@@ -103,6 +106,7 @@ impl<T: Real, const N: usize> Sections<T, N> {
                     stiff += robot.tubes()[i].bending_stiffness_nmm2();
                 }
             }
+            sec.inv_k = T::one() / stiff;
             for i in 0..N {
                 let tube = &robot.tubes()[i];
                 let curve_start = s[i] - tube.params().curved_length_mm;

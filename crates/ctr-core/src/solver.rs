@@ -619,7 +619,7 @@ fn rigid<T: Real, const N: usize>(
 
 /// Solves `J dx = r` for the leading `m x m` block by Gaussian elimination with
 /// partial pivoting; `None` if singular.
-fn solve_linear<T: Real, const N: usize>(
+pub(crate) fn solve_linear<T: Real, const N: usize>(
     mut a: [[T; N]; N],
     mut b: [T; N],
     m: usize,

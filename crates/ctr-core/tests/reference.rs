@@ -52,3 +52,36 @@ fn nitinol2_torsion() {
 fn nitinol3_torsion() {
     check::<3>("nitinol3", "torsion", Model::Torsion);
 }
+
+fn check_gravity<const N: usize>(name: &str) {
+    use ctr_core::{Gravity, Loads};
+    let robot = robot::<N>(name);
+    let loads = Loads {
+        gravity: Some(Gravity::new([-1.0, 0.0, 0.0], 9.81)),
+        ..Default::default()
+    };
+    let mut solver = Solver::default();
+    let (mut worst_p, mut worst_r) = (0.0_f64, 0.0_f64);
+    for row in reference::<N>(name, "gravity") {
+        let sol = solver.solve_loaded(&robot, &row.q, &loads).unwrap();
+        assert_eq!(sol.status, Status::Converged, "{name} {:?}", row.q);
+        worst_p = worst_p.max((sol.tip.position - nalgebra::Vector3::from(row.p)).norm());
+        worst_r = worst_r.max(angle_between(&sol.tip.orientation(), row.quat));
+    }
+    eprintln!("{name}-gravity: max position error {worst_p:.3e} mm, orientation {worst_r:.3e} rad");
+    assert!(worst_p <= POS_TOL_MM, "{name}-gravity: {worst_p} mm");
+    assert!(worst_r <= ROT_TOL_RAD, "{name}-gravity: {worst_r} rad");
+}
+
+#[test]
+fn liu2023_gravity() {
+    check_gravity::<2>("liu2023");
+}
+#[test]
+fn nitinol2_gravity() {
+    check_gravity::<2>("nitinol2");
+}
+#[test]
+fn nitinol3_gravity() {
+    check_gravity::<3>("nitinol3");
+}
