@@ -98,6 +98,23 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
             )
         })
     });
+    let gravity = ctr_core::Loads {
+        gravity: Some(ctr_core::Gravity::new([-1.0, 0.0, 0.0], 9.81)),
+        ..Default::default()
+    };
+    let mut loaded = Solver::default();
+    group.bench_function("gravity/warm", |b| {
+        b.iter(|| {
+            k = (k + 1) % path.len();
+            black_box(
+                loaded
+                    .solve_loaded(&robot, &path[k], &gravity)
+                    .unwrap()
+                    .tip
+                    .position,
+            )
+        })
+    });
     group.finish();
 }
 

@@ -53,6 +53,10 @@ fn solves_allocate_nothing() {
         .map(|r| Joints::new(r.q.s_mm.map(|v| v as f32), r.q.theta_rad.map(|v| v as f32)))
         .collect();
     let mut checksum = 0.0;
+    let gravity = ctr_core::Loads {
+        gravity: Some(ctr_core::Gravity::new([-1.0, 0.0, 0.0], 9.81)),
+        ..Default::default()
+    };
     let n = allocations_during(|| {
         for (r3, r2) in rows3.iter().zip(&rows2) {
             checksum += solver3
@@ -83,6 +87,12 @@ fn solves_allocate_nothing() {
                 .solve_backbone(&robot3, &r3.q, Model::Torsion, &mut points)
                 .unwrap()
                 .0
+                .tip
+                .position
+                .x;
+            checksum += solver3
+                .solve_loaded(&robot3, &r3.q, &gravity)
+                .unwrap()
                 .tip
                 .position
                 .x;

@@ -49,6 +49,13 @@ fn solve3<T: ctr_core::Real>(x: T) -> T {
     if let Ok((sol, _)) = solver.solve_backbone(&robot, &q, Model::Rigid, &mut pts) {
         sum += sol.tip.position.y;
     }
+    let loads = ctr_core::Loads {
+        tip_force_n: [x, T::zero(), T::zero()],
+        ..Default::default()
+    };
+    if let Ok(sol) = solver.solve_loaded(&robot, &q, &loads) {
+        sum += sol.tip.position.z;
+    }
     sum
 }
 
