@@ -3,6 +3,8 @@
 //! need nothing but the core.
 #![allow(missing_docs)]
 
+pub use serde_json;
+
 use ctr_core::{Joints, Robot, TubeParams};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -110,4 +112,43 @@ pub fn angle_between(a: &nalgebra::UnitQuaternion<f64>, quat: [f64; 4]) -> f64 {
         quat[0], quat[1], quat[2], quat[3],
     ));
     a.angle_to(&b)
+}
+
+/// One row of a recording: time, run label, commanded joints, measured tip (mm).
+pub struct RecRow<const N: usize> {
+    pub t_s: f64,
+    pub run: String,
+    pub q: Joints<f64, N>,
+    pub p: [f64; 3],
+}
+
+/// A recording of `shared/data/recordings` and its truth file.
+pub fn recording<const N: usize>(id: &str) -> (Vec<RecRow<N>>, serde_json::Value) {
+    let dir = shared_data().join("recordings");
+    let mut rdr = csv::Reader::from_path(dir.join(format!("{id}.csv"))).unwrap();
+    let header: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name}"))
+    };
+    let rows = rdr
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            let f = |name: &str| r[col(name)].parse::<f64>().unwrap();
+            RecRow {
+                t_s: f("t_s"),
+                run: r[col("run")].to_string(),
+                q: Joints::from_mm_deg(
+                    core::array::from_fn(|i| f(&format!("s{}_mm", i + 1))),
+                    core::array::from_fn(|i| f(&format!("theta{}_deg", i + 1))),
+                ),
+                p: [f("x_mm"), f("y_mm"), f("z_mm")],
+            }
+        })
+        .collect();
+    let truth = std::fs::read_to_string(dir.join(format!("{id}.truth.json"))).unwrap();
+    (rows, serde_json::from_str(&truth).unwrap())
 }

@@ -32,6 +32,8 @@
 pub use nalgebra;
 
 pub mod dual;
+pub mod effects;
+pub mod friction;
 pub mod joints;
 pub mod loads;
 mod real;

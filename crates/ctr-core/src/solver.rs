@@ -8,6 +8,7 @@
 //! [`crate::twist`] by shooting. A solve never panics and never allocates; a result
 //! that is not [`Status::Converged`] says so.
 
+use crate::effects::{ClearanceProfile, Effects};
 use crate::joints::{JointError, Joints};
 use crate::real::{c, Real};
 use crate::robot::Robot;
@@ -254,12 +255,54 @@ impl<T: Real, const N: usize> Solver<T, N> {
         self.solve_into(robot, q, model, Some(points))
     }
 
+    /// Solves with kinematic effects (see [`crate::effects`]): joint offsets are added to
+    /// the commanded joints, clearance kinks bend the backbone where tubes leave each
+    /// other, and the tip is reported as measured (sensor offset, then registration).
+    ///
+    /// ```
+    /// use ctr_core::{effects::{Effects, Registration}, Joints, Model, Robot, Solver, TubeParams};
+    /// let robot = Robot::new([TubeParams::<f64>::new(1.2, 0.9, 260.0, 0.0, 58000.0, 0.33)]).unwrap();
+    /// let effects = Effects {
+    ///     registration: Some(Registration::from_axis_angle([0.0, 0.0, 1.0], 0.0, [1.0, 2.0, 3.0])),
+    ///     ..Default::default()
+    /// };
+    /// let sol = Solver::default().solve_with(&robot, &Joints::new([50.0], [0.0]), Model::Torsion, &effects).unwrap();
+    /// assert!((sol.tip.position.z - 53.0).abs() < 1e-12);
+    /// ```
+    pub fn solve_with(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+        effects: &Effects<T, N>,
+    ) -> Result<Solution<T, N>, JointError> {
+        let mut actual = *q;
+        for i in 0..N {
+            actual.s_mm[i] += effects.feed_offset_mm[i];
+            actual.theta_rad[i] += effects.rotation_offset_rad[i];
+        }
+        let (mut sol, _) = self.solve_effects(robot, &actual, model, None, &effects.clearance)?;
+        sol.tip = effects.measured(&sol.tip);
+        Ok(sol)
+    }
+
     fn solve_into(
         &mut self,
         robot: &Robot<T, N>,
         q: &Joints<T, N>,
         model: Model,
         points: Option<&mut [Vector3<T>]>,
+    ) -> Result<(Solution<T, N>, usize), JointError> {
+        self.solve_effects(robot, q, model, points, &[None; N])
+    }
+
+    fn solve_effects(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+        points: Option<&mut [Vector3<T>]>,
+        clearance: &[Option<ClearanceProfile<T>>; N],
     ) -> Result<(Solution<T, N>, usize), JointError> {
         q.validate(robot)?;
         let k = robot.tubes().map(|t| t.curvature_per_mm());
@@ -276,11 +319,14 @@ impl<T: Real, const N: usize> Solver<T, N> {
             needed: 0,
         };
         let (sol, n) = match model {
-            Model::Rigid => (rigid(robot, q, &sections, &mut sink), sink.needed),
+            Model::Rigid => (
+                rigid(robot, q, &sections, clearance, &mut sink),
+                sink.needed,
+            ),
             Model::Torsion => {
                 let guess = self.guess(q);
                 let cold = self.warm.count == 0;
-                let sol = self.shoot(robot, q, &sections, guess, cold, &mut sink);
+                let sol = self.shoot(robot, q, &sections, guess, cold, clearance, &mut sink);
                 if sol.status == Status::Converged {
                     self.remember(q, &sol.base_twist_per_mm);
                 }
@@ -345,6 +391,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         sections: &Sections<T, N>,
         guess: [T; N],
         cold: bool,
+        clearance: &[Option<ClearanceProfile<T>>; N],
         sink: &mut PointSink<'_, T>,
     ) -> Solution<T, N> {
         let m = N - 1;
@@ -410,7 +457,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             }
             sink.written = 0;
             sink.needed = 0;
-            let mut sol = pose_pass(robot, q, sections, &x, sink);
+            let mut sol = pose_pass(robot, q, sections, &x, clearance, sink);
             sol.iterations = iterations;
             let r = sol.residual_per_mm;
             let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
@@ -531,6 +578,7 @@ fn pose_pass<T: Real, const N: usize>(
     q: &Joints<T, N>,
     sections: &Sections<T, N>,
     x: &[T; N],
+    clearance: &[Option<ClearanceProfile<T>>; N],
     sink: &mut PointSink<'_, T>,
 ) -> Solution<T, N> {
     let (mut st, psi_n, un0, gj) = initial_state::<T, N, false>(robot, q, sections, x);
@@ -559,9 +607,12 @@ fn pose_pass<T: Real, const N: usize>(
         }
     };
     record(&st, T::zero(), &mut done, &mut residual);
+    let mut kinked = [false; N];
+    kinks(q, clearance, &st, T::zero(), &mut kinked, &mut frame);
     for sec in sections.list.iter().take(sections.len) {
         twist::section::<T, N, false, true>(sec, false, &gj, &mut st, &mut frame, sink);
         record(&st, sec.end, &mut done, &mut residual);
+        kinks(q, clearance, &st, sec.end, &mut kinked, &mut frame);
     }
     Solution {
         tip: frame,
@@ -578,6 +629,7 @@ fn rigid<T: Real, const N: usize>(
     robot: &Robot<T, N>,
     q: &Joints<T, N>,
     sections: &Sections<T, N>,
+    clearance: &[Option<ClearanceProfile<T>>; N],
     sink: &mut PointSink<'_, T>,
 ) -> Solution<T, N> {
     let mut st = State::<T, N>::zero();
@@ -591,6 +643,8 @@ fn rigid<T: Real, const N: usize>(
     frame.rotate_z((co, s));
     sink.push(&frame.position);
     let e3 = Vector3::z();
+    let mut kinked = [false; N];
+    kinks(q, clearance, &st, T::zero(), &mut kinked, &mut frame);
     for sec in sections.list.iter().take(sections.len) {
         let rate = twist::body_rate(sec, &st, T::zero());
         let len = sec.end - sec.start;
@@ -605,6 +659,7 @@ fn rigid<T: Real, const N: usize>(
             frame.compose(&r, &p);
             sink.push(&frame.position);
         }
+        kinks(q, clearance, &st, sec.end, &mut kinked, &mut frame);
     }
     let _ = robot;
     Solution {
@@ -614,6 +669,29 @@ fn rigid<T: Real, const N: usize>(
         iterations: 0,
         base_twist_per_mm: [T::zero(); N],
         base_angle_rad: q.theta_rad,
+    }
+}
+
+/// Applies the clearance kinks of the tubes whose tips lie at `at` (where the next
+/// tube leaves them).
+fn kinks<T: Real, const N: usize>(
+    q: &Joints<T, N>,
+    clearance: &[Option<ClearanceProfile<T>>; N],
+    st: &State<T, N>,
+    at: T,
+    kinked: &mut [bool; N],
+    frame: &mut Frame<T>,
+) {
+    for i in 0..N - 1 {
+        if kinked[i] || q.s_mm[i] > at {
+            continue;
+        }
+        kinked[i] = true;
+        if let Some(profile) = &clearance[i] {
+            if q.s_mm[i + 1] > q.s_mm[i] {
+                crate::effects::kink(frame, profile, st.z[i], st.z[i + 1]);
+            }
+        }
     }
 }
 
