@@ -40,6 +40,10 @@ pub const MAX_UNKNOWNS: usize = crate::MAX_TUBES - 1 + 3;
 /// Standard gravity, m/s^2.
 pub const STANDARD_GRAVITY_M_S2: f64 = 9.81;
 
+/// A chord iteration whose residual shrinks by less than this factor refreshes its
+/// Jacobian (a Newton step).
+const CHORD_CONTRACTION: f64 = 0.25;
+
 /// kg/m^3 x mm^2 x m/s^2 in N/mm.
 const WEIGHT_UNIT: f64 = 1e-9;
 
@@ -137,6 +141,13 @@ impl From<JointError> for LoadError {
 }
 
 impl core::error::Error for LoadError {}
+
+/// Warm-start memory of loaded solves: unknowns and the chord Jacobian.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct LoadedWarm<T> {
+    x: [T; MAX_UNKNOWNS],
+    jac: [[T; MAX_UNKNOWNS]; MAX_UNKNOWNS],
+}
 
 /// State of the loaded integration: position, orientation (unit quaternion w, x, y, z of
 /// tube n's frame), internal moment (W), relative angles, twist rates.
@@ -415,8 +426,18 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 weight[i] = rho * t.area_mm2() * g.g_m_s2 * c(WEIGHT_UNIT);
             }
         }
-        // the unloaded twist is the starting guess
-        let unloaded = self.solve(robot, q, Model::Torsion)?;
+        // start from the last loaded solve, else from the unloaded twist
+        let warm = self.loaded;
+        let mut extra_iterations = 0;
+        let mut x = [T::zero(); MAX_UNKNOWNS];
+        match &warm {
+            Some(w) => x = w.x,
+            None => {
+                let unloaded = self.solve(robot, q, Model::Torsion)?;
+                extra_iterations = unloaded.iterations;
+                x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
+            }
+        }
         let k = robot.tubes().map(|t| t.curvature_per_mm());
         let sections = Sections::new(
             robot,
@@ -433,93 +454,93 @@ impl<T: Real, const N: usize> Solver<T, N> {
             s: q.s_mm,
         };
         let unknowns = N + 2;
-        let mut x = [T::zero(); MAX_UNKNOWNS];
-        x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
         let cfg = self.config;
         let mut iterations = 0;
-        let mut status = Status::IterationLimit;
-        loop {
-            while iterations < cfg.max_iterations {
-                iterations += 1;
-                let xd: [Dual<T, MAX_UNKNOWNS>; MAX_UNKNOWNS] =
-                    core::array::from_fn(|i| Dual::var(x[i], i));
-                let (r, _) = integrate(robot, q, &sections, &ctx, &loads.tip_moment_nmm, &xd);
-                let mut jac = [[T::zero(); MAX_UNKNOWNS]; MAX_UNKNOWNS];
-                let mut rv = [T::zero(); MAX_UNKNOWNS];
-                for i in 0..unknowns {
-                    rv[i] = r[i].re;
-                    jac[i] = r[i].eps;
-                }
-                if rv.iter().any(|v| !v.is_finite()) {
-                    status = Status::Diverged;
-                    break;
-                }
-                let Some(dx) = solve_linear::<T, MAX_UNKNOWNS>(jac, rv, unknowns) else {
-                    status = Status::Diverged;
-                    break;
-                };
-                let mut step = T::zero();
-                for i in 0..unknowns {
-                    x[i] -= dx[i];
-                    // moments (N mm) over the bending stiffness scale become rad/mm
-                    let scale = if i < N - 1 {
-                        T::one()
-                    } else {
-                        T::one() / robot.tubes()[N - 1].bending_stiffness_nmm2()
-                    };
-                    step = step.max(dx[i].abs() * scale);
-                }
-                if step <= cfg.step_tolerance_per_mm {
-                    break;
-                }
+        let status;
+        // Chord iteration: the Jacobian from one dual-number pass serves several plain
+        // passes (the load is a mild perturbation, so it barely changes); each plain pass
+        // also yields the residual and pose, so convergence costs no extra pass. A slow
+        // contraction refreshes the Jacobian.
+        let mut jac: Option<[[T; MAX_UNKNOWNS]; MAX_UNKNOWNS]> = warm.map(|w| w.jac);
+        let mut prev_res = T::max_value().unwrap_or(T::one());
+        let scale = |i: usize| {
+            if i < N - 1 {
+                T::one()
+            } else {
+                T::one() / robot.tubes()[N - 1].bending_stiffness_nmm2()
             }
+        };
+        let (st, res) = loop {
             let (r, st) =
                 integrate::<T, T, N>(robot, q, &sections, &ctx, &loads.tip_moment_nmm, &x);
             let mut res = T::zero();
+            let mut rv = [T::zero(); MAX_UNKNOWNS];
             for i in 0..unknowns {
-                let scale = if i < N - 1 {
-                    T::one()
-                } else {
-                    T::one() / robot.tubes()[N - 1].bending_stiffness_nmm2()
-                };
-                res = res.max(r[i].abs() * scale);
+                rv[i] = r[i];
+                // moments (N mm) over the bending stiffness become rad/mm
+                res = res.max(r[i].abs() * scale(i));
             }
-            let frame = frame_of(&st);
-            let finite = res.is_finite() && frame.position.iter().all(|v| v.is_finite());
-            if status != Status::Diverged {
-                status = if !finite {
-                    Status::Diverged
-                } else if res <= cfg.residual_tolerance_per_mm {
-                    Status::Converged
-                } else if iterations < cfg.max_iterations {
-                    continue;
-                } else {
-                    Status::IterationLimit
-                };
+            let finite = res.is_finite() && st.p.iter().all(|v| v.is_finite());
+            if !finite {
+                status = Status::Diverged;
+                break (st, res);
             }
-            let mut base_twist = [T::zero(); N];
-            base_twist[..N - 1].copy_from_slice(&x[..N - 1]);
-            let mut torque = x[N + 1];
-            for j in 0..N - 1 {
-                if sections.len > 0 && sections.list[0].present[j] {
-                    torque -= x[j] * ctx.gj[j];
+            if res <= cfg.residual_tolerance_per_mm {
+                status = Status::Converged;
+                break (st, res);
+            }
+            if iterations >= cfg.max_iterations {
+                status = Status::IterationLimit;
+                break (st, res);
+            }
+            iterations += 1;
+            if jac.is_none() || res > prev_res * c(CHORD_CONTRACTION) {
+                let xd: [Dual<T, MAX_UNKNOWNS>; MAX_UNKNOWNS] =
+                    core::array::from_fn(|i| Dual::var(x[i], i));
+                let (rd, _) = integrate(robot, q, &sections, &ctx, &loads.tip_moment_nmm, &xd);
+                let mut j = [[T::zero(); MAX_UNKNOWNS]; MAX_UNKNOWNS];
+                for i in 0..unknowns {
+                    j[i] = rd[i].eps;
                 }
+                jac = Some(j);
             }
-            base_twist[N - 1] = torque / ctx.gj[N - 1];
-            let mut base_angle = [T::zero(); N];
-            for j in 0..N {
-                base_angle[j] = q.theta_rad[j]
-                    + (robot.tubes()[j].params().length_mm - q.s_mm[j]) * base_twist[j];
+            prev_res = res;
+            let Some(dx) = jac.and_then(|j| solve_linear::<T, MAX_UNKNOWNS>(j, rv, unknowns))
+            else {
+                status = Status::Diverged;
+                break (st, res);
+            };
+            for i in 0..unknowns {
+                x[i] -= dx[i];
             }
-            return Ok(Solution {
-                tip: frame,
-                status,
-                residual_per_mm: res,
-                iterations: iterations + unloaded.iterations,
-                base_twist_per_mm: base_twist,
-                base_angle_rad: base_angle,
-            });
+        };
+        self.loaded = match (status, jac) {
+            (Status::Converged, Some(jac)) => Some(LoadedWarm { x, jac }),
+            (Status::Converged, None) => warm.map(|w| LoadedWarm { x, jac: w.jac }),
+            _ => None,
+        };
+        let mut base_twist = [T::zero(); N];
+        base_twist[..N - 1].copy_from_slice(&x[..N - 1]);
+        let mut torque = x[N + 1];
+        for j in 0..N - 1 {
+            if sections.len > 0 && sections.list[0].present[j] {
+                torque -= x[j] * ctx.gj[j];
+            }
         }
+        base_twist[N - 1] = torque / ctx.gj[N - 1];
+        let mut base_angle = [T::zero(); N];
+        for j in 0..N {
+            base_angle[j] =
+                q.theta_rad[j] + (robot.tubes()[j].params().length_mm - q.s_mm[j]) * base_twist[j];
+        }
+        Ok(Solution {
+            tip: frame_of(&st),
+            status,
+            residual_per_mm: res,
+            iterations: iterations + extra_iterations,
+            base_twist_per_mm: base_twist,
+            base_angle_rad: base_angle,
+        })
     }
 }
 

@@ -154,6 +154,8 @@ pub struct Solver<T, const N: usize> {
     /// Settings.
     pub config: SolverConfig<T>,
     warm: WarmStart<T, N>,
+    /// last loaded solve's unknowns and chord Jacobian (see [`crate::loads`])
+    pub(crate) loaded: Option<crate::loads::LoadedWarm<T>>,
 }
 
 impl<T: Real, const N: usize> Default for Solver<T, N> {
@@ -178,6 +180,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 q: [q; 2],
                 count: 0,
             },
+            loaded: None,
         }
     }
 
@@ -189,6 +192,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
     /// ```
     pub fn reset(&mut self) {
         self.warm.count = 0;
+        self.loaded = None;
     }
 
     /// Solves the forward kinematics, warm-started from the previous solves of this
