@@ -18,7 +18,9 @@
 //!   adds.
 //! * Fault injection ([`Emulator::inject`]): a lost instruction, dropped reply bytes, a
 //!   corrupt reply CRC, a missing reply, and an overload (hardware error bit 5, torque
-//!   off, alert bit in every status until reboot).
+//!   off, alert bit in every status until reboot); [`Emulator::inject_after_goals`]
+//!   arms one when a motor has applied a given number of goal positions, so that a
+//!   fault strikes at a reproducible point of a run.
 //! * Bookkeeping for tests: every applied write is logged ([`Emulator::write_log`]).
 //!
 //! # Serving
@@ -179,6 +181,8 @@ struct Motor {
     table: Vec<u8>,
     position: f64,
     velocity: f64,
+    /// Goal positions applied so far.
+    goals: usize,
 }
 
 impl Motor {
@@ -201,6 +205,7 @@ impl Motor {
             table,
             position: 0.0,
             velocity: 0.0,
+            goals: 0,
         };
         motor.publish();
         motor
@@ -381,6 +386,8 @@ struct Model {
     config: EmulatorConfig,
     motors: Vec<Motor>,
     faults: Vec<(Option<u8>, Fault)>,
+    /// Faults waiting for a motor's goal count: `(motor, fault, goals)`.
+    scheduled: Vec<(Option<u8>, Fault, usize)>,
     log: Vec<AppliedWrite>,
     stats: EmulatorStats,
     last_wall: Instant,
@@ -570,13 +577,63 @@ impl Model {
         let motor = self.motor_mut(id).ok_or(ErrorCode::Access)?;
         motor.check_write(address, data)?;
         motor.apply_write(address, data);
+        let goal = usize::from(ct::GOAL_POSITION);
+        let sets_goal =
+            usize::from(address) <= goal && goal + 4 <= usize::from(address) + data.len();
+        if sets_goal {
+            motor.goals += 1;
+        }
         self.log.push(AppliedWrite {
             id,
             address,
             data: data.to_vec(),
             instruction: via,
         });
+        if sets_goal {
+            self.arm_scheduled();
+        }
         Ok(())
+    }
+
+    /// Injects a fault now: an overload at once on the motors it names, a wire fault
+    /// into the queue.
+    fn arm(&mut self, motor: Option<u8>, fault: Fault) {
+        if fault == Fault::Overload {
+            for m in &mut self.motors {
+                if motor.is_none_or(|id| id == m.id) {
+                    m.overload();
+                }
+            }
+        } else {
+            self.faults.push((motor, fault));
+        }
+    }
+
+    /// Arms the scheduled faults whose motor has applied enough goal positions.
+    fn arm_scheduled(&mut self) {
+        let mut i = 0;
+        while i < self.scheduled.len() {
+            let (motor, fault, goals) = self.scheduled[i];
+            let reached = self
+                .motors
+                .iter()
+                .find(|m| motor.is_none_or(|id| id == m.id) && m.goals >= goals)
+                .map(|m| m.id);
+            match reached {
+                Some(id) => {
+                    self.scheduled.remove(i);
+                    // An overload strikes the motor that reached the count; a wire fault
+                    // for any motor stays for any motor.
+                    let target = if fault == Fault::Overload {
+                        Some(id)
+                    } else {
+                        motor
+                    };
+                    self.arm(target, fault);
+                }
+                None => i += 1,
+            }
+        }
     }
 
     /// Encodes the status packets, applying reply faults.
@@ -680,6 +737,7 @@ impl Emulator {
                 config,
                 motors,
                 faults: Vec::new(),
+                scheduled: Vec::new(),
                 log: Vec::new(),
                 stats: EmulatorStats::default(),
                 last_wall: Instant::now(),
@@ -718,27 +776,62 @@ impl Emulator {
         let mut model = self.lock();
         if fault == Fault::Overload {
             model.sync_clock();
-            for m in &mut model.motors {
-                if motor.is_none_or(|id| id == m.id) {
-                    m.overload();
-                }
-            }
-        } else {
-            model.faults.push((motor, fault));
         }
+        model.arm(motor, fault);
     }
 
-    /// Injected wire faults that have not acted yet.
+    /// Schedules a fault: it is injected as by [`Emulator::inject`] as soon as `motor`
+    /// has applied `goals` goal positions since the emulator was created (counting
+    /// writes and sync writes that set the goal position; with `None`, as soon as any
+    /// one motor has). A scheduled overload strikes the motor that reached the count.
+    /// With `goals` already reached, the fault is injected at once.
+    ///
+    /// The goal is applied first: an overload armed by the goal of a sync write shows
+    /// in the statuses that follow (for the rig: the sync read that verifies it).
+    ///
+    /// ```
+    /// use ctr_hw::emulator::{Emulator, EmulatorConfig, Fault};
+    /// use ctr_hw::bus::{Bus, BusConfig};
+    /// let emu = Emulator::new(EmulatorConfig { time_scale: 0.0, ..EmulatorConfig::default() });
+    /// emu.inject_after_goals(Some(2), Fault::Overload, 2);
+    /// let mut bus = Bus::new(emu.link(), BusConfig::default());
+    /// bus.write(2, 116, &100i32.to_le_bytes())?;
+    /// assert_eq!(emu.hardware_error(2), Some(0));
+    /// // The second goal arms the overload; the write's status already carries the alert.
+    /// assert!(bus.write(2, 116, &200i32.to_le_bytes()).is_err());
+    /// assert_eq!(emu.hardware_error(2), Some(ctr_hw::control_table::HW_ERROR_OVERLOAD));
+    /// assert_eq!(emu.pending_faults(), 0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn inject_after_goals(&self, motor: Option<u8>, fault: Fault, goals: usize) {
+        let mut model = self.lock();
+        model.sync_clock();
+        model.scheduled.push((motor, fault, goals));
+        model.arm_scheduled();
+    }
+
+    /// Faults that have not acted yet: queued wire faults and scheduled faults.
     ///
     /// ```
     /// use ctr_hw::emulator::{Emulator, EmulatorConfig};
     /// assert_eq!(Emulator::new(EmulatorConfig::default()).pending_faults(), 0);
     /// ```
     pub fn pending_faults(&self) -> usize {
-        self.lock().faults.len()
+        let model = self.lock();
+        model.faults.len() + model.scheduled.len()
     }
 
-    /// Forgets the wire faults that have not acted yet.
+    /// Goal positions motor `id` has applied so far.
+    ///
+    /// ```
+    /// use ctr_hw::emulator::{Emulator, EmulatorConfig};
+    /// assert_eq!(Emulator::new(EmulatorConfig::default()).goals_applied(1), Some(0));
+    /// ```
+    pub fn goals_applied(&self, id: u8) -> Option<usize> {
+        self.lock().motor(id).map(|m| m.goals)
+    }
+
+    /// Forgets the faults that have not acted yet (queued and scheduled).
     ///
     /// ```
     /// use ctr_hw::emulator::{Emulator, EmulatorConfig, Fault};
@@ -748,7 +841,9 @@ impl Emulator {
     /// assert_eq!(emu.pending_faults(), 0);
     /// ```
     pub fn clear_faults(&self) {
-        self.lock().faults.clear();
+        let mut model = self.lock();
+        model.faults.clear();
+        model.scheduled.clear();
     }
 
     /// Clears a motor's hardware error, as a reboot would (torque stays off).
@@ -1374,6 +1469,36 @@ mod tests {
         bad[9] ^= 1;
         let reply = emu.process(&mut decoder, &bad);
         assert_eq!(reply[8], ErrorCode::CrcError.code());
+    }
+
+    #[test]
+    fn scheduled_faults_wait_for_the_goal_count() {
+        let emu = frozen();
+        let mut bus = bus(&emu);
+        emu.inject_after_goals(Some(3), Fault::NoReply, 2);
+        emu.inject_after_goals(None, Fault::Overload, 3);
+        let goal = |n: i32| n.to_le_bytes();
+        // Sync writes count for every motor they set; other registers do not count.
+        bus.sync_write(ct::GOAL_POSITION, &[(1, &goal(10)[..]), (3, &goal(10)[..])])
+            .unwrap();
+        bus.write(3, ct::PROFILE_VELOCITY, &goal(50)).unwrap();
+        assert_eq!(emu.goals_applied(3), Some(1));
+        assert_eq!(emu.pending_faults(), 2);
+        assert_eq!(bus.stats().retries, 0);
+        // Motor 3's second goal arms the lost reply: the write is confirmed by read-back.
+        bus.write(3, ct::GOAL_POSITION, &goal(20)).unwrap();
+        assert_eq!(bus.stats().confirmed_by_read_back, 1);
+        assert_eq!(emu.applied_writes(3), 3);
+        // The first motor to reach three goals overloads; the others do not.
+        bus.write(1, ct::GOAL_POSITION, &goal(20)).unwrap();
+        assert_eq!(emu.hardware_error(1), Some(0));
+        bus.write(1, ct::GOAL_POSITION, &goal(30)).unwrap_err(); // alert in the status
+        assert_eq!(emu.hardware_error(1), Some(ct::HW_ERROR_OVERLOAD));
+        assert_eq!(emu.hardware_error(3), Some(0));
+        assert_eq!(emu.pending_faults(), 0);
+        // Already reached: at once.
+        emu.inject_after_goals(Some(3), Fault::Overload, 1);
+        assert_eq!(emu.hardware_error(3), Some(ct::HW_ERROR_OVERLOAD));
     }
 
     #[test]
