@@ -1,14 +1,16 @@
-//! File formats: the robot TOML, the joint CSV, the tip CSV, atomic output.
+//! File formats: the robot TOML, the joint CSV, the tip CSV, the rig's recording CSV,
+//! atomic output.
 //!
 //! The contract is `shared/spec/formats.md`; everything it describes is read and written
-//! as it says. This module adds two optional sections to the robot TOML (also described
-//! in `data/FORMATS-EXTENSION.md`); files without them mean what they always meant.
+//! as it says. This module adds three optional sections to the robot TOML and columns to
+//! the recording (also described in `data/FORMATS-EXTENSION.md`); files without them
+//! mean what they always meant.
 //!
 //! # Robot TOML
 //!
 //! Top-level keys: `name` (string, optional), `[[tube]]` (1 to 4 tables, outermost
 //! first, keys exactly those of the contract plus an optional `name`), and the
-//! extensions `[model]` and `[limits]`. Unknown keys anywhere are refused with the line
+//! extensions `[model]`, `[limits]` and `[actuation]`. Unknown keys anywhere are refused with the line
 //! and column of the key and the list of keys expected there.
 //!
 //! ## `[model]`: the mechanics a file's robot is solved with
@@ -49,6 +51,47 @@
 //! not enforce the limits (the core's own checks, `0 <= s_1 <= ... <= s_n <= length`,
 //! always apply); see [`TubeLimits::violation`].
 //!
+//! ## `[actuation]`: the motor behind each joint (for `ctr-cli hw`)
+//!
+//! ```toml
+//! [[actuation.joint]]
+//! name = "s1"               # feed of tube 1: drives column s1_mm (kind "feed", mm)
+//! motor_id = 1              # Dynamixel ID, 0..=252, one joint per motor
+//! kind = "feed"
+//! mm_per_rev = 8.0          # feed only, required: mm per motor revolution
+//! ticks_per_rev = 4096      # default 4096
+//! direction = 1             # 1: motor position grows with the joint; -1: the opposite
+//! zero_offset_ticks = 0     # motor position at joint value 0; default 0
+//! min = 0.0                 # joint limits in mm (feed) or degrees (rotation), inclusive
+//! max = 100.0
+//! max_speed = 6.0           # mm/s or deg/s: the motor's profile velocity
+//!
+//! [[actuation.joint]]
+//! name = "theta1"           # rotation of tube 1: drives column theta1_deg (kind "rotation")
+//! motor_id = 2
+//! kind = "rotation"
+//! gear_ratio = 1.0          # rotation only: motor revolutions per tube revolution; default 1
+//! min = -180.0
+//! max = 180.0
+//! max_speed = 180.0
+//! ```
+//!
+//! One table per joint and one joint per table: a feed joint `s{i}` and a rotation joint
+//! `theta{i}` for every tube i of the robot, in any order. The name ties a table to its
+//! joint column (`s{i}` to `s{i}_mm`, `theta{i}` to `theta{i}_deg`) and fixes its kind;
+//! the joint value, in the column's unit, is what the motor mapping converts:
+//! `ticks = zero_offset_ticks + direction * round(value * u * ticks_per_rev)` with `u`
+//! the motor revolutions per unit (`1 / mm_per_rev`, or `gear_ratio / 360`). The tables
+//! have exactly the shape of `ctr-hw`'s `[[actuation.joint]]`. A validated robot keeps
+//! them in joint-vector order ([`RobotSpec::actuation`]: `s1, theta1, s2, ...`) and
+//! writes them back in that order. Errors name the table (`actuation.joint 3`), the
+//! key and its line and column: unknown or missing keys, names that are not a joint of
+//! the robot, a joint actuated twice or not at all, a kind that does not fit the name,
+//! a motor ID used twice or above 252, `direction` other than 1 or -1, `mm_per_rev` on a
+//! rotation or `gear_ratio` on a feed, non-positive leads, ratios, tick counts or
+//! speeds, non-finite limits, `min > max`, limits beyond the motor's 32-bit range.
+//! Forward kinematics ignores the section; `ctr-cli hw` refuses robots without it.
+//!
 //! # Joint CSV and tip CSV
 //!
 //! [`JointTable`] reads the joint file: the header must name `s1_mm,theta1_deg,...` for
@@ -64,19 +107,35 @@
 //! written in Rust's shortest round-trip form ([`format_float`]): parsing the text gives
 //! the computed `f64` back bit for bit.
 //!
+//! # Recording CSV (written by `ctr-cli hw run`)
+//!
+//! [`RecordingWriter`] writes [`recording_header`]:
+//! `t_s,run,s1_mm,theta1_deg,...,s1_read_mm,theta1_read_deg,...,x_mm,y_mm,z_mm`: the
+//! contract's recording (time in seconds, run label, the commanded joints, the tip) plus
+//! the joints read back from the motors ([`JointId::read_column`]). `x_mm,y_mm,z_mm`
+//! are left empty for the tracker. Each row is one `write` of the whole line and a flush:
+//! a run that stops leaves a valid CSV of its completed rows. An existing recording is
+//! never replaced unless asked.
+//!
 //! # Errors
 //!
 //! Every error is one line: `file[:line[:column]]: message` (see [`crate::Error`]).
 //! CSV lines count the header as line 1; TOML positions come from the parser's span or
 //! point at the offending value.
 
+mod actuation;
 mod joints;
 mod output;
+mod recording;
 pub(crate) mod robot_file;
 mod tips;
 
+pub use actuation::{
+    ActuatedJoint, ActuationSection, ActuatorKind, JointId, DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
+};
 pub use joints::JointTable;
 pub use output::AtomicFile;
+pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{
     Effects, Gravity, LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile,
     TubeLimits,

@@ -2,6 +2,7 @@
 //!
 //! The shape is documented in [the module above](super).
 
+use super::actuation::{self, ActuatedJoint, ActuationSection};
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::AnyRobot;
 use ctr_core::{Model, RobotError, TubeParams};
@@ -23,6 +24,10 @@ pub struct RobotFile {
     /// `[limits]`: joint ranges, one `[[limits.tube]]` per tube (extension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub limits: Option<LimitsSection>,
+    /// `[actuation]`: the motor driving each joint, one `[[actuation.joint]]` per joint
+    /// (extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuation: Option<ActuationSection>,
 }
 
 /// One `[[tube]]` table: the fields of [`TubeParams`] plus an optional name.
@@ -312,10 +317,14 @@ pub struct RobotSpec {
     pub model: Model,
     /// `[limits]`, one entry per tube, every range finite with `min <= max`.
     pub limits: Option<Vec<TubeLimits>>,
+    /// `[actuation]`, validated against the robot: exactly one feed and one rotation
+    /// joint per tube, in joint-vector order (`s1, theta1, s2, theta2, ...`, the order
+    /// of the joint columns).
+    pub actuation: Option<Vec<ActuatedJoint>>,
 }
 
 /// A key path in the TOML document, for locating semantic errors.
-enum Key {
+pub(crate) enum Key {
     Name(&'static str),
     Index(usize),
 }
@@ -338,7 +347,7 @@ impl RobotFile {
         })
     }
 
-    /// Serializes to TOML (tubes first, then `[model]` and `[limits]`).
+    /// Serializes to TOML (tubes first, then `[model]`, `[limits]` and `[actuation]`).
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("a RobotFile always serializes")
     }
@@ -403,12 +412,20 @@ impl RobotFile {
                 Some(l.tube.clone())
             }
         };
+        let actuation = match &self.actuation {
+            None => None,
+            Some(section) => Some(
+                actuation::validate(section, params.len())
+                    .map_err(|(message, path)| (ErrorKind::Toml { message }, path))?,
+            ),
+        };
         Ok(RobotSpec {
             name: self.name.clone(),
             tube_names: self.tube.iter().map(|t| t.name.clone()).collect(),
             robot,
             model: section.kind.into(),
             limits,
+            actuation,
         })
     }
 }
@@ -482,6 +499,10 @@ impl RobotSpec {
                 effects: Effects::default(),
             }),
             limits: self.limits.clone().map(|tube| LimitsSection { tube }),
+            actuation: self
+                .actuation
+                .clone()
+                .map(|joint| ActuationSection { joint }),
         }
     }
 
