@@ -1,6 +1,7 @@
 //! Command-line options (clap derive), all in one place.
 
 use clap::{Parser, Subcommand, ValueEnum};
+use ctr_hw::emulator::Fault;
 use std::path::PathBuf;
 
 const FK_EXAMPLE: &str = "\
@@ -13,7 +14,7 @@ status,residual_per_mm. Floats are written in shortest round-trip form.
 
 Exit status: 0 success, 1 solves did not converge (--on-error fail), 2 bad input.";
 
-/// Batch kinematics of concentric tube robots.
+/// Batch kinematics of concentric tube robots, and the servo rig that drives them.
 #[derive(Debug, Parser)]
 #[command(name = "ctr-cli", version, after_help = FK_EXAMPLE)]
 pub struct Cli {
@@ -28,6 +29,265 @@ pub enum Command {
     /// Forward kinematics: joint CSV in, tip CSV out.
     #[command(after_help = FK_EXAMPLE)]
     Fk(FkArgs),
+    /// The servo rig: Dynamixel 2.0 motors on a serial port, or an emulated bus.
+    #[command(subcommand)]
+    Hw(HwCommand),
+}
+
+const HW_EXAMPLE: &str = "\
+Example (the robot file needs an [actuation] section; `ctr-cli hw emulate` in another
+terminal prints the port of an emulated bus, e.g. /dev/pts/5):
+  ctr-cli hw ping --port /dev/pts/5 --robot rig.toml
+  ctr-cli hw move --port /dev/pts/5 --robot rig.toml --joints s1=20,theta1=90,s2=60,theta2=0
+  ctr-cli hw run --port /dev/pts/5 --robot rig.toml --joints trajectory.csv -o recording.csv
+
+Exit status: 0 success, 1 the port, the bus or the rig failed (the rig is stopped and the
+recording keeps every completed row), 2 bad input (nothing was sent).";
+
+const EMULATE_HELP: &str = "\
+The emulator has motors 1..2N (X-series, extended position mode, 4096 ticks per
+revolution), all at position 0 with torque off. It prints the pseudo-terminal's path on
+stdout (one line) and serves until killed or, when standard input is not a terminal,
+until standard input closes.
+
+Faults (--fault, repeatable): KIND[:ID][@GOALS][xCOUNT]
+  KIND   overload          hardware error (overload): torque off, alert in every status
+         no-reply          the status packet is lost (the instruction is applied)
+         corrupt-crc       the status packet's CRC is wrong (the instruction is applied)
+         drop-reply-bytes[=N]  N bytes (default 3) of the status packet are lost
+         drop-instruction  the instruction packet is lost: not applied, not answered
+  ID     the motor (default: any motor)
+  GOALS  strike once the motor has applied this many goal positions (default 0: now);
+         enabling the rig sets one goal per motor and every move one more, so @1 strikes
+         right after enabling and @K+1 during the K-th move
+  COUNT  the wire fault strikes this many times in a row (default 1; not for overload)
+Example: --fault overload:2@5 overloads motor 2 during the fourth move.";
+
+/// `ctr-cli hw ...`.
+#[derive(Debug, Subcommand)]
+pub enum HwCommand {
+    /// Serve an emulated servo bus on a pseudo-terminal and print its path.
+    #[command(after_help = EMULATE_HELP)]
+    Emulate(EmulateArgs),
+    /// Ping every motor of the robot's [actuation] and list them (CSV on stdout).
+    #[command(after_help = HW_EXAMPLE)]
+    Ping(PingArgs),
+    /// Move every joint to zero (s_i = 0 mm, theta_i = 0 deg) and print where they are.
+    #[command(after_help = HW_EXAMPLE)]
+    Home(HomeArgs),
+    /// Move the joints to the values given and print where they are.
+    #[command(after_help = HW_EXAMPLE)]
+    Move(MoveArgs),
+    /// Play a joint trajectory and record what the rig did.
+    #[command(after_help = RUN_HELP)]
+    Run(RunArgs),
+}
+
+const RUN_HELP: &str = "\
+The trajectory has the joint columns s1_mm,theta1_deg,... (other columns are ignored)
+and optionally t_s (seconds, non-decreasing). Every row is checked against the contract,
+the robot's [limits] and the [actuation] limits before anything is sent. Then, row by
+row: send the goals; without t_s wait until the motors are still, with t_s wait until
+the next row's time (the last row: until still); read the positions back; append the
+row to the recording.
+
+Recording (CSV, one flushed line per completed row):
+  t_s,run,s1_mm,theta1_deg,...,s1_read_mm,theta1_read_deg,...,x_mm,y_mm,z_mm
+t_s: seconds since the first goal was sent, taken when the positions were read; the
+joint columns: the goals in force then; the _read_ columns: the positions read back;
+x_mm,y_mm,z_mm: empty, for the tracker.
+
+On a fault the rig holds position (--torque-off-on-fault also switches torque off),
+the fault and the packet that caused it are reported on stderr, the recording keeps
+every completed row, and the exit status is 1.";
+
+/// Options of `ctr-cli hw emulate`.
+#[derive(Debug, clap::Args)]
+pub struct EmulateArgs {
+    /// Tubes of the robot: the bus has motors 1..2N.
+    #[arg(long, value_name = "N", default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=4))]
+    pub tubes: u8,
+
+    /// Simulated seconds per second (motion runs this much faster than real time).
+    #[arg(long, value_name = "X", default_value_t = 1.0, value_parser = parse_time_scale)]
+    pub time_scale: f64,
+
+    /// A fault to inject: KIND[:ID][@GOALS][xCOUNT] (see below); repeatable.
+    #[arg(long, value_name = "SPEC", value_parser = parse_fault)]
+    pub fault: Vec<FaultSpec>,
+
+    /// Serve until killed, even when standard input closes.
+    #[arg(long)]
+    pub ignore_stdin: bool,
+}
+
+/// A fault to inject into the emulator (`--fault`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaultSpec {
+    /// What happens.
+    pub fault: Fault,
+    /// To which motor (any when `None`).
+    pub motor: Option<u8>,
+    /// After how many goal positions applied to it.
+    pub after_goals: usize,
+    /// How many times in a row.
+    pub count: usize,
+}
+
+fn parse_time_scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("{s:?} is not a positive number")),
+    }
+}
+
+/// Parses `KIND[:ID][@GOALS][xCOUNT]` (see `ctr-cli hw emulate --help`).
+pub fn parse_fault(spec: &str) -> Result<FaultSpec, String> {
+    fn number<T: std::str::FromStr>(s: &str, what: &str) -> Result<T, String> {
+        s.parse()
+            .map_err(|_| format!("{what} {s:?} is not a whole number"))
+    }
+    let mut rest = spec;
+    let mut count = 1;
+    if let Some((head, n)) = rest.rsplit_once('x') {
+        if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) {
+            count = number(n, "count")?;
+            if count == 0 {
+                return Err("count must be at least 1".into());
+            }
+            rest = head;
+        }
+    }
+    let mut after_goals = 0;
+    if let Some((head, n)) = rest.rsplit_once('@') {
+        after_goals = number(n, "goal count")?;
+        rest = head;
+    }
+    let mut motor = None;
+    if let Some((head, id)) = rest.rsplit_once(':') {
+        motor = Some(number::<u8>(id, "motor ID")?);
+        rest = head;
+    }
+    let fault = match rest.split_once('=') {
+        Some(("drop-reply-bytes", n)) => Fault::DropReplyBytes(number(n, "byte count")?),
+        None if rest == "drop-reply-bytes" => Fault::DropReplyBytes(3),
+        None if rest == "overload" => Fault::Overload,
+        None if rest == "no-reply" => Fault::NoReply,
+        None if rest == "corrupt-crc" => Fault::CorruptReplyCrc,
+        None if rest == "drop-instruction" => Fault::DropInstruction,
+        _ => {
+            return Err(format!(
+                "unknown fault {rest:?} in {spec:?}: expected KIND[:ID][@GOALS][xCOUNT] with KIND one of overload, no-reply, corrupt-crc, drop-reply-bytes[=N], drop-instruction"
+            ))
+        }
+    };
+    if fault == Fault::Overload && count != 1 {
+        return Err("an overload strikes once: no xCOUNT".into());
+    }
+    Ok(FaultSpec {
+        fault,
+        motor,
+        after_goals,
+        count,
+    })
+}
+
+/// How to reach the rig, and which robot it is.
+#[derive(Debug, clap::Args)]
+pub struct Connection {
+    /// Serial port of the servo bus (e.g. /dev/ttyUSB0, or the path `hw emulate` prints).
+    #[arg(long, value_name = "PATH")]
+    pub port: String,
+
+    /// Robot description with an [actuation] section (TOML).
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot: PathBuf,
+
+    /// Baud rate of the serial line.
+    #[arg(long, value_name = "B", default_value_t = 57_600)]
+    pub baud: u32,
+
+    /// How long to wait for each status packet, in milliseconds (3 attempts at most).
+    #[arg(long, value_name = "MS", default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub timeout_ms: u64,
+}
+
+/// What to do when moving.
+#[derive(Debug, clap::Args)]
+pub struct Motion {
+    /// On a fault, switch torque off after telling the motors to hold (default: keep
+    /// torque on and hold position).
+    #[arg(long)]
+    pub torque_off_on_fault: bool,
+
+    /// Extra seconds allowed for the motors to come to rest, beyond twice the time the
+    /// move takes at the joints' max_speed.
+    #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = parse_seconds)]
+    pub settle_margin: f64,
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err(format!("{s:?} is not a number of seconds")),
+    }
+}
+
+/// Options of `ctr-cli hw ping`.
+#[derive(Debug, clap::Args)]
+pub struct PingArgs {
+    #[command(flatten)]
+    pub connection: Connection,
+}
+
+/// Options of `ctr-cli hw home`.
+#[derive(Debug, clap::Args)]
+pub struct HomeArgs {
+    #[command(flatten)]
+    pub connection: Connection,
+    #[command(flatten)]
+    pub motion: Motion,
+}
+
+/// Options of `ctr-cli hw move`.
+#[derive(Debug, clap::Args)]
+pub struct MoveArgs {
+    #[command(flatten)]
+    pub connection: Connection,
+    #[command(flatten)]
+    pub motion: Motion,
+
+    /// Every joint's goal, as s1=MM,theta1=DEG,... (an argument with `=`), or a joint
+    /// CSV file with one row (`-` reads standard input).
+    #[arg(long, value_name = "s1=..,theta1=..|JOINTS.csv")]
+    pub joints: String,
+}
+
+/// Options of `ctr-cli hw run`.
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub connection: Connection,
+    #[command(flatten)]
+    pub motion: Motion,
+
+    /// Joint trajectory (CSV with s1_mm,theta1_deg,... and optionally t_s); `-` reads
+    /// standard input.
+    #[arg(long, value_name = "TRAJECTORY.csv")]
+    pub joints: PathBuf,
+
+    /// The recording to write (must not exist, unless --overwrite); `-` writes standard
+    /// output.
+    #[arg(short, long, value_name = "RECORDING.csv")]
+    pub output: PathBuf,
+
+    /// Replace an existing recording.
+    #[arg(long)]
+    pub overwrite: bool,
+
+    /// The recording's run label (default: the trajectory's file name without extension).
+    #[arg(long, value_name = "LABEL")]
+    pub run: Option<String>,
 }
 
 /// Options of `ctr-cli fk`.
@@ -78,4 +338,57 @@ pub enum OnErrorArg {
     Skip,
     /// Keep them, with status and residual columns.
     Mark,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_specs() {
+        let spec = |fault, motor, after_goals, count| FaultSpec {
+            fault,
+            motor,
+            after_goals,
+            count,
+        };
+        assert_eq!(
+            parse_fault("overload:2@5"),
+            Ok(spec(Fault::Overload, Some(2), 5, 1))
+        );
+        assert_eq!(
+            parse_fault("no-reply"),
+            Ok(spec(Fault::NoReply, None, 0, 1))
+        );
+        assert_eq!(
+            parse_fault("corrupt-crc@3x2"),
+            Ok(spec(Fault::CorruptReplyCrc, None, 3, 2))
+        );
+        assert_eq!(
+            parse_fault("drop-reply-bytes=4:1x3"),
+            Ok(spec(Fault::DropReplyBytes(4), Some(1), 0, 3))
+        );
+        assert_eq!(
+            parse_fault("drop-reply-bytes:4"),
+            Ok(spec(Fault::DropReplyBytes(3), Some(4), 0, 1))
+        );
+        assert_eq!(
+            parse_fault("drop-instruction:3@1"),
+            Ok(spec(Fault::DropInstruction, Some(3), 1, 1))
+        );
+        for bad in [
+            "",
+            "overheat",
+            "overload:x",
+            "overload:300",
+            "overload@",
+            "no-reply x0",
+            "no-replyx0",
+            "overload:1x2",
+            "drop-reply-bytes=many",
+            "no-reply:1@2@3",
+        ] {
+            assert!(parse_fault(bad).is_err(), "{bad:?} accepted");
+        }
+    }
 }

@@ -1,10 +1,11 @@
-//! `ctr-cli`: batch kinematics of concentric tube robots.
+//! `ctr-cli`: batch kinematics of concentric tube robots, and the servo rig ([`hw`]).
 //!
 //! `main` parses the options ([`cli`]), runs the command and maps the outcome to an exit
-//! status: 0 success, 1 solves that did not converge under `--on-error fail`, 2 bad
-//! input or usage. Every error is one line on stderr.
+//! status: 0 success, 1 solves that did not converge under `--on-error fail` or a rig,
+//! bus or port failure, 2 bad input or usage. Every error is one line on stderr.
 
 mod cli;
+mod hw;
 mod progress;
 
 use clap::Parser;
@@ -24,6 +25,8 @@ enum Failure {
     Input(String),
     /// Solves did not converge: exit 1.
     Solver(String),
+    /// The serial port, the bus or the rig failed (the rig is stopped): exit 1.
+    Hardware(String),
 }
 
 fn main() -> ExitCode {
@@ -33,7 +36,7 @@ fn main() -> ExitCode {
     };
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(Failure::Solver(msg)) => {
+        Err(Failure::Solver(msg) | Failure::Hardware(msg)) => {
             eprintln!("error: {msg}");
             ExitCode::from(1)
         }
@@ -76,6 +79,7 @@ fn usage_error(e: clap::Error) -> ExitCode {
 fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Fk(args) => fk(args),
+        Command::Hw(command) => hw::run(command),
     }
 }
 
