@@ -28,6 +28,7 @@
 pub mod batch;
 mod error;
 pub mod formats;
+pub mod ik;
 pub mod job;
 mod robot;
 

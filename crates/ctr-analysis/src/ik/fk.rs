@@ -1,0 +1,214 @@
+//! Forward kinematics and the tip Jacobian as the inverse kinematics sees them.
+//!
+//! [`TipFk`] hides the tube count: the core's `Solver<f64, N>` and `Robot<f64, N>` behind
+//! an object that solves joint vectors given as slices (mm, rad). It keeps the core
+//! solver's warm-start memory for the current iterate, so that trial points and the
+//! finite-difference probes around the iterate start from its converged twist.
+//!
+//! [`tip_jacobian`] is the only place the Jacobian comes from. It uses central finite
+//! differences of the core FK solved to tight tolerances (`residual_tolerance_per_mm`
+//! [`FK_RESIDUAL_TOLERANCE`]) with steps [`FD_STEP_MM`] / [`FD_STEP_RAD`], one-sided
+//! where a probe would leave the joint limits. When ctr-core exposes analytic
+//! Jacobians as `Solver` methods, add a `jacobian` method to [`TipFk`] calling them and
+//! make [`tip_jacobian`] return its result; nothing else changes.
+
+use super::limits::JointLimits;
+use ctr_core::{Frame, Joints, Model, Robot, Solver, SolverConfig, Status};
+use nalgebra::{Matrix3, Rotation3, SMatrix, UnitQuaternion, Vector3};
+
+/// Most joints (`2 * MAX_TUBES`): the IK's matrices have this size, padded.
+pub(crate) const MAX_JOINTS: usize = 2 * ctr_core::MAX_TUBES;
+/// The tip Jacobian, padded with zero columns beyond `2 n`.
+pub(crate) type Jacobian = SMatrix<f64, 6, MAX_JOINTS>;
+
+/// Free-tip twist residual the IK's FK solves to, rad/mm (the core default is 1e-12).
+pub const FK_RESIDUAL_TOLERANCE: f64 = 1e-13;
+/// A solve that ends short of [`FK_RESIDUAL_TOLERANCE`] (the iteration bound hit at the
+/// rounding floor) is still used when its residual is below this, rad/mm.
+pub const FK_ACCEPT_RESIDUAL: f64 = 1e-11;
+/// Finite-difference step on feeds, mm.
+pub const FD_STEP_MM: f64 = 1e-6;
+/// Finite-difference step on rotations, rad.
+pub const FD_STEP_RAD: f64 = 1e-6;
+
+/// Tip forward kinematics of one robot on joint slices `s_1, theta_1, ...` (mm, rad).
+pub(crate) trait TipFk: Send + Sync {
+    /// The number of tubes.
+    fn n_tubes(&self) -> usize;
+    /// Forgets all warm-start memory.
+    fn reset(&mut self);
+    /// Solves `q` warm-started from the current iterate and keeps the result as the
+    /// pending trial; `None` when the solve does not converge.
+    fn trial(&mut self, q: &[f64]) -> Option<Frame<f64>>;
+    /// Makes the pending trial the current iterate.
+    fn accept(&mut self);
+    /// Solves `q` warm-started from the current iterate without remembering it.
+    fn probe(&self, q: &[f64]) -> Option<Frame<f64>>;
+    /// Solves `q` cold.
+    fn cold(&self, q: &[f64]) -> Option<Frame<f64>>;
+    /// A copy with the same warm-start memory.
+    fn boxed_clone(&self) -> Box<dyn TipFk>;
+}
+
+/// [`TipFk`] on the core's solver.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CoreFk<const N: usize> {
+    robot: Robot<f64, N>,
+    model: Model,
+    current: Solver<f64, N>,
+    pending: Solver<f64, N>,
+}
+
+impl<const N: usize> CoreFk<N> {
+    pub fn new(robot: Robot<f64, N>, model: Model) -> Self {
+        let s = Solver::new(SolverConfig {
+            residual_tolerance_per_mm: FK_RESIDUAL_TOLERANCE,
+            ..SolverConfig::default()
+        });
+        CoreFk {
+            robot,
+            model,
+            current: s,
+            pending: s,
+        }
+    }
+
+    fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Frame<f64>> {
+        let joints = Joints::new(
+            core::array::from_fn(|i| q[2 * i]),
+            core::array::from_fn(|i| q[2 * i + 1]),
+        );
+        let ok = |sol: &ctr_core::Solution<f64, N>| {
+            (sol.status == Status::Converged || sol.residual_per_mm <= FK_ACCEPT_RESIDUAL)
+                && sol.tip.position.iter().all(|v| v.is_finite())
+        };
+        let sol = solver.solve(&self.robot, &joints, self.model).ok()?;
+        if ok(&sol) {
+            return Some(sol.tip);
+        }
+        // a warm start from far away can fail where a cold one does not
+        solver.reset();
+        let sol = solver.solve(&self.robot, &joints, self.model).ok()?;
+        ok(&sol).then_some(sol.tip)
+    }
+}
+
+impl<const N: usize> TipFk for CoreFk<N> {
+    fn n_tubes(&self) -> usize {
+        N
+    }
+
+    fn reset(&mut self) {
+        self.current.reset();
+        self.pending.reset();
+    }
+
+    fn trial(&mut self, q: &[f64]) -> Option<Frame<f64>> {
+        let mut s = self.current;
+        let tip = self.solve(&mut s, q);
+        self.pending = s;
+        tip
+    }
+
+    fn accept(&mut self) {
+        self.current = self.pending;
+    }
+
+    fn probe(&self, q: &[f64]) -> Option<Frame<f64>> {
+        let mut s = self.current;
+        self.solve(&mut s, q)
+    }
+
+    fn cold(&self, q: &[f64]) -> Option<Frame<f64>> {
+        let mut s = self.current;
+        s.reset();
+        self.solve(&mut s, q)
+    }
+
+    fn boxed_clone(&self) -> Box<dyn TipFk> {
+        Box::new(*self)
+    }
+}
+
+/// The rotation vector (axis times angle, angle in `[0, pi]`) of the rotation matrix
+/// `r`, through its quaternion (Shepperd's method: no `acos`, so accurate for tiny
+/// angles and safe for matrices a few ulps off orthogonal).
+pub(crate) fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r));
+    let (w, v) = if q.w < 0.0 {
+        (-q.w, -q.imag())
+    } else {
+        (q.w, q.imag())
+    };
+    let s = v.norm();
+    if s == 0.0 {
+        return Vector3::zeros();
+    }
+    v * (2.0 * s.atan2(w) / s)
+}
+
+/// The tip Jacobian at `q` (whose tip is `tip`, and which is the current iterate of
+/// `fk`): rows 0..3 `d position / d q` (mm per mm or per rad), rows 3..6 the tip's
+/// angular velocity in W per unit joint rate. Written into the first `2 n` columns of `jac`.
+///
+/// This is the single place to swap in the core's analytic Jacobian (see the module
+/// docs). Probes stay inside `limits`: a joint at a bound gets a one-sided difference;
+/// a joint pinned between two bounds (no probe possible either way) gets a zero column.
+pub(crate) fn tip_jacobian(
+    fk: &dyn TipFk,
+    limits: &JointLimits,
+    q: &[f64],
+    tip: &Frame<f64>,
+    jac: &mut Jacobian,
+) {
+    let n = q.len();
+    let mut probe_q = q.to_vec();
+    let mut probe = |j: usize, delta: f64| -> Option<Frame<f64>> {
+        probe_q.copy_from_slice(q);
+        probe_q[j] += delta;
+        if !limits.admits(&probe_q) {
+            return None;
+        }
+        fk.probe(&probe_q)
+    };
+    for j in 0..n {
+        let h = if j % 2 == 0 { FD_STEP_MM } else { FD_STEP_RAD };
+        let plus = probe(j, h);
+        let minus = probe(j, -h);
+        let (a, b, width) = match (&plus, &minus) {
+            (Some(p), Some(m)) => (p, m, 2.0 * h),
+            (Some(p), None) => (p, tip, h),
+            (None, Some(m)) => (tip, m, h),
+            (None, None) => {
+                jac.column_mut(j).fill(0.0);
+                continue;
+            }
+        };
+        let dp = (a.position - b.position) / width;
+        let dw = log_so3(&(a.rotation * b.rotation.transpose())) / width;
+        jac.fixed_view_mut::<3, 1>(0, j).copy_from(&dp);
+        jac.fixed_view_mut::<3, 1>(3, j).copy_from(&dw);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_so3_inverts_the_exponential() {
+        for v in [
+            Vector3::new(1e-9, -2e-9, 3e-10),
+            Vector3::new(0.3, -0.2, 0.9),
+            Vector3::new(0.0, 3.1, 0.0),
+            Vector3::zeros(),
+        ] {
+            let r = Rotation3::from_scaled_axis(v).into_inner();
+            let back = log_so3(&r);
+            assert!(
+                (back - v).norm() <= 1e-15 + 1e-13 * v.norm(),
+                "{v} -> {back}"
+            );
+        }
+    }
+}
