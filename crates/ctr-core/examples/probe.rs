@@ -1,57 +1,41 @@
 //! scratch probe (not committed)
 use ctr_core::*;
 use ctr_suite::*;
-#[inline(never)]
-fn run(robot: &Robot<f64, 3>, qs: &[Joints<f64, 3>]) -> f64 {
-    let mut solver = Solver::default();
-    let mut acc = 0.0;
-    for q in qs {
-        acc += solver
-            .solve(robot, q, Model::Torsion)
-            .unwrap()
-            .tip
-            .position
-            .x;
-    }
-    acc
-}
 fn main() {
-    let robot = robot::<3>("nitinol3");
-    let mut qs = vec![];
-    for k in 0..20000 {
-        let t = k as f64 * 1e-3;
-        let mut s = [0.0; 3];
-        let mut th = [0.0; 3];
-        let mut acc = 0.0;
-        for i in 0..3 {
-            let ph = 0.7 * i as f64;
-            acc += 10.0 + 40.0 * 0.5 * (1.0 + (0.9 * t + ph).sin());
-            s[i] = acc;
-            th[i] = 2.5 * (0.6 * t * (i as f64 + 1.0) + ph).sin();
-        }
-        qs.push(Joints::new(s, th));
-    }
-    let t0 = std::time::Instant::now();
-    let a = run(&robot, &qs);
-    println!("{a} warm {:?} per solve", t0.elapsed() / 20000);
-    let rows = reference::<3>("nitinol3", "torsion");
-    let t0 = std::time::Instant::now();
-    let mut acc = 0.0;
-    let mut it = [0usize; 12];
-    for _ in 0..100 {
-        for r in &rows {
-            let s = Solver::default()
-                .solve_cold(&robot, &r.q, Model::Torsion)
+    let robot = robot::<2>("liu2023");
+    for s1 in [20.0, 45.0, 70.0] {
+        let mut line = format!("liu2023 rel 0, s1 {s1}:");
+        for inc in [25.0, 40.0, 55.0, 70.0, 85.0, 95.0] {
+            let sol = Solver::default()
+                .solve_cold(
+                    &robot,
+                    &Joints::from_mm_deg([s1, s1 + inc], [0.0, 0.0]),
+                    Model::Torsion,
+                )
                 .unwrap();
-            acc += s.tip.position.x;
-            it[s.iterations as usize] += 1;
+            line += &format!(" {:.3}", sol.stability_margin);
         }
+        println!("{line}");
     }
-    println!(
-        "{acc} cold {:?} per solve, iterations {:?}",
-        t0.elapsed() / 20000,
-        it
-    );
+    let t = |od, id, len, cl, r, e| TubeParams {
+        curvature_radius_mm: Some(r),
+        ..TubeParams::<f64>::new(od, id, len, cl, e, 0.41)
+    };
+    let long = Robot::new([
+        t(6.8, 4.9, 224.0, 74.0, -97.0, 150.0),
+        t(4.5, 3.3, 274.0, 114.0, 98.5, 300.0),
+    ])
+    .unwrap();
+    let mut line = String::from("long, rel 0, s2 = s1 + 40:");
+    for s1 in [20.0, 25.0, 30.0, 32.0, 33.0, 35.0, 40.0] {
+        let sol = Solver::default()
+            .solve_cold(
+                &long,
+                &Joints::from_mm_deg([s1, s1 + 40.0], [0.0, 0.0]),
+                Model::Torsion,
+            )
+            .unwrap();
+        line += &format!(" {s1}:{:.3}", sol.stability_margin);
+    }
+    println!("{line}");
 }
-#[allow(dead_code)]
-fn cold_probe() {}

@@ -429,12 +429,14 @@ impl<T: Real, const N: usize> Solver<T, N> {
         // start from the last loaded solve, else from the unloaded twist
         let warm = self.loaded;
         let mut extra_iterations = 0;
+        let mut margin = T::one();
         let mut x = [T::zero(); MAX_UNKNOWNS];
         match &warm {
             Some(w) => x = w.x,
             None => {
                 let unloaded = self.solve(robot, q, Model::Torsion)?;
                 extra_iterations = unloaded.iterations;
+                margin = unloaded.stability_margin;
                 x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
             }
         }
@@ -540,6 +542,9 @@ impl<T: Real, const N: usize> Solver<T, N> {
             iterations: iterations + extra_iterations,
             base_twist_per_mm: base_twist,
             base_angle_rad: base_angle,
+            // the loaded shooting Jacobian mixes units (twists and moments): the
+            // unloaded solve's margin is reported
+            stability_margin: margin,
         })
     }
 }

@@ -125,6 +125,12 @@ pub struct Solution<T: Real, const N: usize> {
     pub base_twist_per_mm: [T; N],
     /// Angle of each tube's material frame at the guide exit, rad.
     pub base_angle_rad: [T; N],
+    /// Elastic stability margin: the smallest singular value of the shooting Jacobian
+    /// `d u_i(s_i) / d u_k(0)` (dimensionless; 1 for tubes that do not interact), signed
+    /// with its determinant. It falls to zero where the robot snaps (a bifurcation of the
+    /// twist boundary-value problem) and is negative on a branch past one (an unstable
+    /// equilibrium); 1 for the `rigid` model and a single tube.
+    pub stability_margin: T,
 }
 
 /// Memory carried between solves along a trajectory.
@@ -408,6 +414,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         let mut best = (x, huge);
         let mut prev_norm = huge;
         let mut last_step = [T::zero(); N];
+        let mut margin = T::one();
         let mut damping = T::one();
         let mut diverged = false;
         loop {
@@ -433,6 +440,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 }
                 prev_norm = norm;
                 damping = T::one();
+                margin = smallest_singular_value(&jac, m);
                 let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
                     diverged = true;
                     break;
@@ -463,6 +471,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             sink.needed = 0;
             let mut sol = pose_pass(robot, q, sections, &x, clearance, sink);
             sol.iterations = iterations;
+            sol.stability_margin = margin;
             let r = sol.residual_per_mm;
             let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
             sol.status = if diverged || !finite {
@@ -622,6 +631,7 @@ fn pose_pass<T: Real, const N: usize>(
         tip: frame,
         status: Status::Converged,
         residual_per_mm: residual,
+        stability_margin: T::one(),
         iterations: 0,
         base_twist_per_mm: base_twist,
         base_angle_rad: base_angle,
@@ -673,6 +683,7 @@ fn rigid<T: Real, const N: usize>(
         iterations: 0,
         base_twist_per_mm: [T::zero(); N],
         base_angle_rad: q.theta_rad,
+        stability_margin: T::one(),
     }
 }
 
@@ -696,6 +707,31 @@ fn kinks<T: Real, const N: usize>(
                 crate::effects::kink(frame, profile, st.z[i], st.z[i + 1]);
             }
         }
+    }
+}
+
+/// Smallest singular value of the leading `m x m` block (m <= 3), from the eigenvalues
+/// of `J^T J`, signed with `det J`; unused dimensions are padded so they never count.
+fn smallest_singular_value<T: Real, const N: usize>(jac: &[[T; N]; N], m: usize) -> T {
+    const PAD: f64 = 1e30;
+    let mut a = nalgebra::Matrix3::<T>::from_diagonal_element(c(PAD));
+    for i in 0..m.min(3) {
+        for k in 0..m.min(3) {
+            a[(i, k)] = jac[i][k];
+        }
+    }
+    let ata = a.transpose() * a;
+    let eig = nalgebra::SymmetricEigen::new(ata).eigenvalues;
+    let min = eig
+        .iter()
+        .fold(T::max_value().unwrap_or(T::one()), |acc, &v| acc.min(v));
+    // the sign of det J tells the branches apart: it is +1 with no coupling (J = I) and
+    // flips at every bifurcation the solution passes
+    let sigma = min.max(T::zero()).sqrt();
+    if a.determinant() < T::zero() {
+        -sigma
+    } else {
+        sigma
     }
 }
 
