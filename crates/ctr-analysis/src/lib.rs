@@ -31,6 +31,7 @@ pub mod formats;
 pub mod ik;
 pub mod job;
 mod robot;
+pub mod timeline;
 
 pub use error::{status_name, Error, ErrorKind, Location};
 pub use robot::{canonical_quaternion, joint_columns, AnyRobot, FkResult, FkSolver};

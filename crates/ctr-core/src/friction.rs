@@ -78,22 +78,63 @@ impl<T: Real, const N: usize> PlayFriction<T, N> {
     /// Steps the memory to a new command and returns the actual joints.
     pub fn apply(&mut self, q: &Joints<T, N>) -> Joints<T, N> {
         let mut out = *q;
-        for i in 0..N {
-            self.feed[i] = play(self.feed[i], q.s_mm[i], self.feed_half_width_mm[i]);
-            out.s_mm[i] = self.feed[i];
-        }
-        for i in 0..N.saturating_sub(1) {
-            let x = q.theta_rad[i + 1] - q.theta_rad[i];
-            self.rotation[i] = play(self.rotation[i], x, self.rotation_half_width_rad[i]);
-            out.theta_rad[i + 1] = out.theta_rad[i] + self.rotation[i];
-        }
-        // feeds must keep their order even where plays differ
-        for i in 1..N {
-            if out.s_mm[i] < out.s_mm[i - 1] {
-                out.s_mm[i] = out.s_mm[i - 1];
-            }
-        }
+        play_step(
+            &mut self.rotation,
+            &mut self.feed,
+            &self.rotation_half_width_rad,
+            &self.feed_half_width_mm,
+            &mut out.s_mm,
+            &mut out.theta_rad,
+        );
         out
+    }
+}
+
+/// One step of the play-operator friction on slices (any number of tubes): moves the
+/// memories `rotation` (per pair) and `feed` (per tube) to the command in `s` and
+/// `theta` and overwrites those with the actual joints. [`PlayFriction::apply`] is this
+/// on arrays; the std layer calls it for robots whose size is known at run time.
+///
+/// ```
+/// let (mut rot, mut feed) = ([0.0_f64], [10.0, 50.0]);
+/// let (mut s, mut theta) = ([10.0, 50.0], [0.0, 0.3]);
+/// ctr_core::friction::play_step(&mut rot, &mut feed, &[0.1], &[0.0, 0.0], &mut s, &mut theta);
+/// assert!((theta[1] - 0.2).abs() < 1e-15);
+/// ```
+pub fn play_step<T: Real>(
+    rotation: &mut [T],
+    feed: &mut [T],
+    rotation_half_width: &[T],
+    feed_half_width: &[T],
+    s: &mut [T],
+    theta: &mut [T],
+) {
+    let n = s
+        .len()
+        .min(theta.len())
+        .min(feed.len())
+        .min(feed_half_width.len());
+    for i in 0..n {
+        feed[i] = play(feed[i], s[i], feed_half_width[i]);
+        s[i] = feed[i];
+    }
+    let pairs = n
+        .saturating_sub(1)
+        .min(rotation.len())
+        .min(rotation_half_width.len());
+    // commanded relative rotations first: the loop below overwrites theta
+    let mut prev_cmd = if n > 0 { theta[0] } else { T::zero() };
+    for i in 0..pairs {
+        let x = theta[i + 1] - prev_cmd;
+        prev_cmd = theta[i + 1];
+        rotation[i] = play(rotation[i], x, rotation_half_width[i]);
+        theta[i + 1] = theta[i] + rotation[i];
+    }
+    // feeds must keep their order even where plays differ
+    for i in 1..n {
+        if s[i] < s[i - 1] {
+            s[i] = s[i - 1];
+        }
     }
 }
 

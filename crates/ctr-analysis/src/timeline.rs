@@ -1,0 +1,154 @@
+//! Effects that need a run's time series: `latency`, and how it composes with the joint
+//! offsets and the play-operator friction of [`ctr_core::friction`].
+//!
+//! Conventions (those of the recordings in `shared/data/recordings`):
+//!
+//! 1. `joint_offset`: actual = commanded + offset.
+//! 2. `latency` (`tau_s`, > 0 a lag): the joints at a row's time `t` are the commanded
+//!    ones at `t - tau`, linear in time between the run's commanded samples; the first
+//!    command holds before the run's first sample, the last after its last.
+//! 3. `friction` acts on that continuous delayed path. The play operator only needs a
+//!    piecewise-linear input's corners, so the corners that fall between two rows (the
+//!    commanded samples, shifted to `t_j + tau`) enter it in order before the row's own
+//!    value. Its memory starts centred at the run's first command.
+//!
+//! Joints here are in file order and units (`s1_mm, theta1_deg, ...`).
+
+/// Time-dependent effect parameters for one robot (file units).
+///
+/// ```
+/// let e = ctr_analysis::timeline::TimeEffects::none(2);
+/// assert_eq!(e.latency_s, 0.0);
+/// assert_eq!(e.rotation_play_deg.len(), 1);
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimeEffects {
+    /// Added to the commanded joints, file order (mm, degrees).
+    pub joint_offset: Vec<f64>,
+    /// Delay of the actual joints behind the commands, s (negative: a lead).
+    pub latency_s: f64,
+    /// Half-width of the rotation play of each neighbouring pair, degrees.
+    pub rotation_play_deg: Vec<f64>,
+    /// Half-width of the feed play of each tube, mm.
+    pub feed_play_mm: Vec<f64>,
+}
+
+impl TimeEffects {
+    /// No time effects for a robot of `n` tubes.
+    ///
+    /// ```
+    /// let e = ctr_analysis::timeline::TimeEffects::none(3);
+    /// assert_eq!(e.joint_offset, vec![0.0; 6]);
+    /// ```
+    pub fn none(n: usize) -> Self {
+        TimeEffects {
+            joint_offset: vec![0.0; 2 * n],
+            latency_s: 0.0,
+            rotation_play_deg: vec![0.0; n.saturating_sub(1)],
+            feed_play_mm: vec![0.0; n],
+        }
+    }
+}
+
+/// The commanded path of a run at time `t` (linear between samples, held at the ends).
+fn path_at(t_s: &[f64], q: &[Vec<f64>], t: f64, out: &mut [f64]) {
+    let last = t_s.len() - 1;
+    let k = if t <= t_s[0] {
+        out.copy_from_slice(&q[0]);
+        return;
+    } else if t >= t_s[last] {
+        out.copy_from_slice(&q[last]);
+        return;
+    } else {
+        // first sample strictly after t
+        t_s.partition_point(|&x| x <= t)
+    };
+    let (t0, t1) = (t_s[k - 1], t_s[k]);
+    let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 1.0 };
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = q[k - 1][j] + (q[k][j] - q[k - 1][j]) * f;
+    }
+}
+
+/// Actual joints of one run's rows (times `t_s`, ascending; commanded joints `q` in file
+/// order) under offsets, latency and friction.
+///
+/// ```
+/// use ctr_analysis::timeline::{actual_joints, TimeEffects};
+/// let t = [0.0, 1.0, 2.0];
+/// let q = vec![vec![10.0, 0.0, 50.0, 0.0], vec![10.0, 0.0, 50.0, 10.0], vec![10.0, 0.0, 50.0, 20.0]];
+/// let mut e = TimeEffects::none(2);
+/// e.latency_s = 0.5;
+/// let a = actual_joints(&t, &q, &e);
+/// assert_eq!(a[1][3], 5.0); // half a sample behind
+/// ```
+pub fn actual_joints(t_s: &[f64], q: &[Vec<f64>], effects: &TimeEffects) -> Vec<Vec<f64>> {
+    if t_s.is_empty() || q.is_empty() {
+        return Vec::new();
+    }
+    let width = q[0].len();
+    let n = width / 2;
+    let cmd: Vec<Vec<f64>> = q
+        .iter()
+        .map(|row| {
+            row.iter()
+                .enumerate()
+                .map(|(j, v)| v + effects.joint_offset.get(j).copied().unwrap_or(0.0))
+                .collect()
+        })
+        .collect();
+    let tau = effects.latency_s;
+    let friction = effects.rotation_play_deg.iter().any(|&w| w > 0.0)
+        || effects.feed_play_mm.iter().any(|&w| w > 0.0);
+    let mut rotation = vec![0.0; n.saturating_sub(1)];
+    let mut feed = vec![0.0; n];
+    let (mut s, mut theta) = (vec![0.0; n], vec![0.0; n]);
+    let split = |row: &[f64], s: &mut [f64], theta: &mut [f64]| {
+        for i in 0..n {
+            s[i] = row[2 * i];
+            theta[i] = row[2 * i + 1];
+        }
+    };
+    if friction {
+        // memory centred on the first command
+        split(&cmd[0], &mut s, &mut theta);
+        feed.copy_from_slice(&s);
+        for i in 0..rotation.len() {
+            rotation[i] = theta[i + 1] - theta[i];
+        }
+    }
+    let mut step = |row: &[f64]| -> Vec<f64> {
+        split(row, &mut s, &mut theta);
+        if friction {
+            ctr_core::friction::play_step(
+                &mut rotation,
+                &mut feed,
+                &effects.rotation_play_deg,
+                &effects.feed_play_mm,
+                &mut s,
+                &mut theta,
+            );
+        }
+        let mut out = vec![0.0; width];
+        for i in 0..n {
+            out[2 * i] = s[i];
+            out[2 * i + 1] = theta[i];
+        }
+        out
+    };
+    let mut value = vec![0.0; width];
+    let mut next_corner = 0;
+    let mut out = Vec::with_capacity(t_s.len());
+    for &t in t_s {
+        if friction {
+            // corners of the delayed path up to this row's time, in order
+            while next_corner < t_s.len() && t_s[next_corner] + tau <= t {
+                step(&cmd[next_corner]);
+                next_corner += 1;
+            }
+        }
+        path_at(t_s, &cmd, t - tau, &mut value);
+        out.push(step(&value));
+    }
+    out
+}
