@@ -15,8 +15,9 @@
 //! | torsion/warm (trajectory) | 0.47 us  | 0.91 us  |
 //! | torsion/cold (scattered)  | 0.75 us  | 1.70 us  |
 //! | rigid                     | 0.23 us  | 0.37 us  |
+//! | gravity/warm (trajectory) | 4.7 us   | 5.3 us   |
 //!
-//! Targets for 3 tubes: warm <= 1 us, cold <= 2 us.
+//! Targets for 3 tubes: warm <= 1 us, cold <= 2 us, gravity <= 10 us.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ctr_core::{Joints, Model, Robot, Solver};

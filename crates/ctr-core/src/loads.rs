@@ -144,9 +144,12 @@ impl core::error::Error for LoadError {}
 
 /// Warm-start memory of loaded solves: unknowns and the chord Jacobian.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct LoadedWarm<T> {
+pub(crate) struct LoadedWarm<T, const N: usize> {
     x: [T; MAX_UNKNOWNS],
     jac: [[T; MAX_UNKNOWNS]; MAX_UNKNOWNS],
+    q: Joints<T, N>,
+    /// the solve before: its unknowns and joints, for extrapolation
+    before: Option<([T; MAX_UNKNOWNS], Joints<T, N>)>,
 }
 
 /// State of the loaded integration: position, orientation (unit quaternion w, x, y, z of
@@ -432,7 +435,15 @@ impl<T: Real, const N: usize> Solver<T, N> {
         let mut margin = T::one();
         let mut x = [T::zero(); MAX_UNKNOWNS];
         match &warm {
-            Some(w) => x = w.x,
+            Some(w) => {
+                x = w.x;
+                if let Some((x0, q0)) = &w.before {
+                    let alpha = crate::solver::extrapolation(q, &w.q, q0);
+                    for i in 0..MAX_UNKNOWNS {
+                        x[i] += (w.x[i] - x0[i]) * alpha;
+                    }
+                }
+            }
             None => {
                 let unloaded = self.solve(robot, q, Model::Torsion)?;
                 extra_iterations = unloaded.iterations;
@@ -517,8 +528,12 @@ impl<T: Real, const N: usize> Solver<T, N> {
             }
         };
         self.loaded = match (status, jac) {
-            (Status::Converged, Some(jac)) => Some(LoadedWarm { x, jac }),
-            (Status::Converged, None) => warm.map(|w| LoadedWarm { x, jac: w.jac }),
+            (Status::Converged, Some(jac)) => Some(LoadedWarm {
+                x,
+                jac,
+                q: *q,
+                before: warm.map(|w| (w.x, w.q)),
+            }),
             _ => None,
         };
         let mut base_twist = [T::zero(); N];

@@ -161,7 +161,7 @@ pub struct Solver<T, const N: usize> {
     pub config: SolverConfig<T>,
     warm: WarmStart<T, N>,
     /// last loaded solve's unknowns and chord Jacobian (see [`crate::loads`])
-    pub(crate) loaded: Option<crate::loads::LoadedWarm<T>>,
+    pub(crate) loaded: Option<crate::loads::LoadedWarm<T, N>>,
 }
 
 impl<T: Real, const N: usize> Default for Solver<T, N> {
@@ -353,24 +353,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             0 => [T::zero(); N],
             1 => self.warm.x[0],
             _ => {
-                let (q1, q0) = (&self.warm.q[0], &self.warm.q[1]);
-                let mut num = T::zero();
-                let mut den = T::zero();
-                // feeds in mm and angles in rad weigh alike (1 rad ~ 1 mm of the robot's scale
-                // would be arbitrary; both only set the extrapolation fraction)
-                for i in 0..N {
-                    let a = q.s_mm[i] - q1.s_mm[i];
-                    let b = q1.s_mm[i] - q0.s_mm[i];
-                    let ta = q.theta_rad[i] - q1.theta_rad[i];
-                    let tb = q1.theta_rad[i] - q0.theta_rad[i];
-                    num += a * b + ta * tb;
-                    den += b * b + tb * tb;
-                }
-                let alpha = if den > T::zero() {
-                    (num / den).max(T::zero()).min(c(2.0))
-                } else {
-                    T::zero()
-                };
+                let alpha = extrapolation(q, &self.warm.q[0], &self.warm.q[1]);
                 let mut x = self.warm.x[0];
                 for i in 0..N {
                     x[i] += (self.warm.x[0][i] - self.warm.x[1][i]) * alpha;
@@ -707,6 +690,31 @@ fn kinks<T: Real, const N: usize>(
                 crate::effects::kink(frame, profile, st.z[i], st.z[i + 1]);
             }
         }
+    }
+}
+
+/// How far to extrapolate along the last step of a trajectory: the projection of the
+/// new joint step `q - q1` onto the last one `q1 - q0`, as a fraction of it, in [0, 2].
+/// Feeds (mm) and angles (rad) weigh alike; they only set the fraction.
+pub(crate) fn extrapolation<T: Real, const N: usize>(
+    q: &Joints<T, N>,
+    q1: &Joints<T, N>,
+    q0: &Joints<T, N>,
+) -> T {
+    let mut num = T::zero();
+    let mut den = T::zero();
+    for i in 0..N {
+        let a = q.s_mm[i] - q1.s_mm[i];
+        let b = q1.s_mm[i] - q0.s_mm[i];
+        let ta = q.theta_rad[i] - q1.theta_rad[i];
+        let tb = q1.theta_rad[i] - q0.theta_rad[i];
+        num += a * b + ta * tb;
+        den += b * b + tb * tb;
+    }
+    if den > T::zero() {
+        (num / den).max(T::zero()).min(c(2.0))
+    } else {
+        T::zero()
     }
 }
 
