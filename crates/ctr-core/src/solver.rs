@@ -329,10 +329,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             needed: 0,
         };
         let (sol, n) = match model {
-            Model::Rigid => (
-                rigid(robot, q, &sections, clearance, &mut sink),
-                sink.needed,
-            ),
+            Model::Rigid => (rigid(q, &sections, clearance, &mut sink), sink.needed),
             Model::Torsion => {
                 let guess = self.guess(q);
                 let cold = self.warm.count == 0;
@@ -623,7 +620,6 @@ fn pose_pass<T: Real, const N: usize>(
 
 /// The torsionally rigid model: constant curvature per section, exact exponentials.
 fn rigid<T: Real, const N: usize>(
-    robot: &Robot<T, N>,
     q: &Joints<T, N>,
     sections: &Sections<T, N>,
     clearance: &[Option<ClearanceProfile<T>>; N],
@@ -658,7 +654,6 @@ fn rigid<T: Real, const N: usize>(
         }
         kinks(q, clearance, &st, sec.end, &mut kinked, &mut frame);
     }
-    let _ = robot;
     Solution {
         tip: frame,
         status: Status::Converged,
