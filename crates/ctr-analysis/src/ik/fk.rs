@@ -191,6 +191,49 @@ pub(crate) fn tip_jacobian(
     }
 }
 
+impl super::Ik {
+    /// The tip Jacobian at `joints` (file units: `s_1` mm, `theta_1` degrees, ...) as
+    /// the IK computes it: the central differences of `tip_jacobian` at the FK solved
+    /// cold with the IK's tight tolerances, probes kept inside this solver's limits.
+    /// One column per joint, in joint order; in each, entries 0..3 are
+    /// `d position / d joint` (mm per mm, mm per degree) and entries 3..6 the tip's
+    /// angular velocity in W (rad per mm, rad per degree). `None` when the joints are
+    /// outside the core's ranges or the FK does not converge there.
+    ///
+    /// # Panics
+    /// If `joints` does not have `2 n` values.
+    ///
+    /// ```
+    /// use ctr_analysis::ik::{Ik, IkOptions};
+    /// use ctr_core::{Model, TubeParams};
+    /// let t = TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
+    /// let robot = ctr_analysis::AnyRobot::new(&[t]).unwrap();
+    /// let options = IkOptions { seed_samples: 0, ..Default::default() };
+    /// let ik = Ik::new(&robot, Model::Torsion, None, options).unwrap();
+    /// let j = ik.tip_jacobian(&[50.0, 30.0]).unwrap();
+    /// assert!((j[0][2] - 1.0).abs() < 1e-6); // feeding moves the tip along z
+    /// assert!((j[1][5] - 1f64.to_radians()).abs() < 1e-9); // turning spins it about z
+    /// ```
+    pub fn tip_jacobian(&self, joints: &[f64]) -> Option<Vec<[f64; 6]>> {
+        let q = self.from_file_units(joints);
+        let mut fk = self.fk.boxed_clone();
+        fk.reset();
+        let tip = fk.trial(&q)?;
+        fk.accept();
+        let mut jac = Jacobian::zeros();
+        tip_jacobian(&*fk, &self.limits, &q, &tip, &mut jac);
+        let per_degree = 1f64.to_radians();
+        Some(
+            (0..q.len())
+                .map(|c| {
+                    let unit = if c % 2 == 1 { per_degree } else { 1.0 };
+                    core::array::from_fn(|r| jac[(r, c)] * unit)
+                })
+                .collect(),
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

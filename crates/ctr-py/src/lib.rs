@@ -1,0 +1,32 @@
+//! `ctr_py._ctr`: the compiled half of the `ctr-py` wheel (import `ctr_py`).
+//!
+//! A thin layer over `ctr-analysis`, with no numerics of its own: array-likes in are
+//! checked for dtype and shape and copied into row-major `f64` rows ([`arrays`]);
+//! each call checks the rows as the CLI checks a joint file, then calls the std
+//! layer (batch FK, IK, the Jacobian, the backbone) with the GIL released, on all
+//! cores; results go back as numpy arrays. Errors become the `ctr_py` exception
+//! hierarchy ([`errors`]) with the CLI's one-line messages.
+//!
+//! The Python package (`python/ctr_py`) re-exports this module's classes beside its
+//! pure-Python exception classes; `_ctr.pyi` there documents the Python API.
+//! Recording, diagnosis and calibration (`ctr_py.read_recording`, `ctr_py.diagnose`,
+//! `ctr_py.calibrate`) will be module functions registered in [`ctr_module`] next to
+//! [`robot::Robot`], each in a file of its own, once `ctr-analysis` has them.
+//!
+//! Rust tests here never start an interpreter (see the toolchain notes): the Python
+//! side is tested with pytest under `tests/python/`.
+
+use pyo3::prelude::*;
+
+mod arrays;
+mod errors;
+mod parallel;
+mod robot;
+
+/// The extension module `ctr_py._ctr`.
+#[pymodule(name = "_ctr")]
+fn ctr_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<robot::Robot>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

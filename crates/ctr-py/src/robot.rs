@@ -1,0 +1,607 @@
+//! `ctr_py.Robot`: a robot file's robot, model and limits, and the calls on it.
+//!
+//! Every call reads its array arguments ([`arrays::read_rows`]), releases the GIL,
+//! checks the rows as `ctr-cli` checks a joint file (finite, then the core's joint
+//! ranges; the first bad row is reported), runs the std layer's function and builds
+//! numpy arrays from the results. Joints are in file units (`s1_mm, theta1_deg, ...`).
+
+use crate::arrays::{self, Rows};
+use crate::errors::{self, Fail};
+use crate::parallel;
+use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
+use ctr_analysis::formats::RobotSpec;
+use ctr_analysis::ik::{Ik, IkOptions, IkTarget};
+use ctr_analysis::{status_name, AnyRobot, Error, ErrorKind, Location};
+use ctr_core::{JointError, Joints, Model, Robot as CoreRobot, Solver, Status};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use pyo3::prelude::*;
+use pyo3::types::{PyTuple, PyType};
+use pyo3::IntoPyObjectExt;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// Names of the target columns, as in a targets file.
+const TARGET_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"];
+/// Most worker threads a call may ask for (each is an OS thread).
+const MAX_THREADS: usize = 1024;
+/// How far from 1 a target quaternion's norm may be (it is then normalised).
+const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
+/// A robot read from a robot TOML file (tubes, `[model]`, `[limits]`, `[actuation]`).
+#[pyclass(frozen, module = "ctr_py", name = "Robot")]
+pub struct Robot {
+    spec: RobotSpec,
+    /// The file name errors give (the path as given, or the name passed with the text).
+    source: String,
+    /// IK solvers within the file's limits, built on first use: rigid, torsion.
+    ik: [OnceLock<Result<Ik, String>>; 2],
+    /// Jacobian solvers within the core's joint ranges (no start table): rigid, torsion.
+    jacobian: [OnceLock<Result<Ik, String>>; 2],
+}
+
+/// `threads` checked: 0 (all cores) to [`MAX_THREADS`].
+fn threads_arg(threads: usize) -> PyResult<usize> {
+    if threads > MAX_THREADS {
+        return Err(errors::input(format!(
+            "threads: {threads} is not in 0..={MAX_THREADS} (0 = all cores)"
+        )));
+    }
+    Ok(threads)
+}
+
+fn model_index(model: Model) -> usize {
+    match model {
+        Model::Rigid => 0,
+        Model::Torsion => 1,
+    }
+}
+
+fn model_name(model: Model) -> &'static str {
+    match model {
+        Model::Rigid => "rigid",
+        Model::Torsion => "torsion",
+    }
+}
+
+/// `Joints` from a file-order slice (mm, degrees).
+fn joints_of<const N: usize>(q: &[f64]) -> Joints<f64, N> {
+    Joints::from_mm_deg(
+        core::array::from_fn(|i| q[2 * i]),
+        core::array::from_fn(|i| q[2 * i + 1]),
+    )
+}
+
+/// A cold solve of `q` with its backbone: status, residual, points (x, y, z, ...).
+fn backbone_of<const N: usize>(
+    robot: &CoreRobot<f64, N>,
+    q: &[f64],
+    model: Model,
+) -> Result<(Status, f64, Vec<f64>), JointError> {
+    let joints = joints_of::<N>(q);
+    let mut points = vec![Vector3::zeros(); 256];
+    loop {
+        let (sol, n) = Solver::default().solve_backbone(robot, &joints, model, &mut points)?;
+        if n <= points.len() {
+            let xyz = points[..n].iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+            return Ok((sol.status, sol.residual_per_mm, xyz));
+        }
+        points.resize(n, Vector3::zeros());
+    }
+}
+
+/// The failure `ctr-cli fk --on-error fail` reports: the first failed row, and counts.
+fn solver_failed(
+    location: Location,
+    status: Status,
+    residual_per_mm: f64,
+    failed: usize,
+    rows: usize,
+) -> Error {
+    Error::new(
+        location,
+        ErrorKind::SolverFailed {
+            status,
+            residual_per_mm,
+            failed,
+            rows,
+        },
+    )
+}
+
+impl Robot {
+    fn new(spec: RobotSpec, source: String) -> Self {
+        Robot {
+            spec,
+            source,
+            ik: Default::default(),
+            jacobian: Default::default(),
+        }
+    }
+
+    fn n_joints(&self) -> usize {
+        2 * self.spec.robot.n_tubes()
+    }
+
+    /// `model` or the file's.
+    fn model_arg(&self, model: Option<&str>) -> PyResult<Model> {
+        match model {
+            None => Ok(self.spec.model),
+            Some("rigid") => Ok(Model::Rigid),
+            Some("torsion") => Ok(Model::Torsion),
+            Some(other) => Err(errors::input(format!(
+                "model: \"{other}\" is not a model (rigid or torsion)"
+            ))),
+        }
+    }
+
+    /// Reads joint rows (shape `(2n,)` or `(m, 2n)`).
+    fn read_joints(&self, obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Rows> {
+        let n = self.spec.robot.n_tubes();
+        let what = format!(
+            "{} for a {n}-tube robot",
+            self.spec.robot.joint_columns().join(", ")
+        );
+        arrays::read_rows(obj, name, &[2 * n], &what)
+    }
+
+    /// The checks `ctr-cli fk` makes on every joint row, in the same order: every value
+    /// finite, then the core's ranges; the first bad row is the error.
+    fn check_joints(&self, rows: &Rows, name: &str) -> Result<(), Error> {
+        let columns = self.spec.robot.joint_columns();
+        for i in 0..rows.rows {
+            let q = rows.row(i);
+            let at = || errors::at(name, i, rows.batched);
+            if let Some(k) = q.iter().position(|v| !v.is_finite()) {
+                return Err(Error::new(
+                    at(),
+                    ErrorKind::NotFinite {
+                        column: columns[k].clone(),
+                        found: arrays::nonfinite_text(q[k]),
+                    },
+                ));
+            }
+            self.spec
+                .robot
+                .validate_joints(q)
+                .map_err(|e| Error::new(at(), ErrorKind::Joint(e)))?;
+        }
+        Ok(())
+    }
+
+    /// The IK solver of `model` (within the file's limits), or the Jacobian's (within
+    /// the core's ranges only, no start table), built on first use.
+    fn solver(&self, model: Model, for_jacobian: bool) -> Result<&Ik, Fail> {
+        let slots = if for_jacobian {
+            &self.jacobian
+        } else {
+            &self.ik
+        };
+        slots[model_index(model)]
+            .get_or_init(|| {
+                let built = if for_jacobian {
+                    let options = IkOptions {
+                        seed_samples: 0,
+                        ..IkOptions::default()
+                    };
+                    Ik::new(&self.spec.robot, model, None, options)
+                } else {
+                    Ik::new(
+                        &self.spec.robot,
+                        model,
+                        self.spec.limits.as_deref(),
+                        IkOptions::default(),
+                    )
+                };
+                built.map_err(|e| format!("{}: {e}", self.source))
+            })
+            .as_ref()
+            .map_err(|m| Fail::Input(m.clone()))
+    }
+
+    /// Reads IK targets: positions `(3,)`/`(m, 3)` or poses `(7,)`/`(m, 7)`.
+    fn targets(rows: &Rows) -> Result<Vec<IkTarget>, Fail> {
+        (0..rows.rows)
+            .map(|i| {
+                let t = rows.row(i);
+                let at = || errors::at("targets", i, rows.batched);
+                if let Some(k) = t.iter().position(|v| !v.is_finite()) {
+                    return Err(Fail::Ctr(Error::new(
+                        at(),
+                        ErrorKind::NotFinite {
+                            column: TARGET_COLUMNS[k].to_owned(),
+                            found: arrays::nonfinite_text(t[k]),
+                        },
+                    )));
+                }
+                let position = [t[0], t[1], t[2]];
+                if t.len() == 3 {
+                    return Ok(IkTarget::position(position));
+                }
+                // as `ctr-cli ik` reads a targets file: a unit quaternion within 1e-3,
+                // then normalised
+                let q = [t[3], t[4], t[5], t[6]];
+                let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+                if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                    return Err(Fail::Input(format!(
+                        "{}: qw,qx,qy,qz = {}, {}, {}, {} has norm {norm}: expected a unit quaternion (norm 1 within 1e-3)",
+                        at(),
+                        q[0],
+                        q[1],
+                        q[2],
+                        q[3]
+                    )));
+                }
+                let q = Quaternion::new(q[0], q[1], q[2], q[3]);
+                Ok(IkTarget::pose(position, UnitQuaternion::from_quaternion(q)))
+            })
+            .collect()
+    }
+}
+
+/// One value per row: a Python scalar for a single input, an array for a batch.
+fn per_row<'py, T>(
+    py: Python<'py>,
+    batched: bool,
+    values: Vec<T>,
+    array: impl FnOnce(Python<'py>, Vec<T>) -> PyResult<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    T: IntoPyObject<'py> + Clone,
+{
+    if batched {
+        array(py, values)
+    } else {
+        values[0].clone().into_bound_py_any(py)
+    }
+}
+
+/// `shape` for a batch of `rows`, or `shape` without the row axis for one input.
+fn shape(rows: &Rows, item: &[usize]) -> Vec<usize> {
+    if rows.batched {
+        std::iter::once(rows.rows)
+            .chain(item.iter().copied())
+            .collect()
+    } else {
+        item.to_vec()
+    }
+}
+
+#[pymethods]
+impl Robot {
+    /// Reads a robot TOML file; errors name `path` as given.
+    #[classmethod]
+    fn from_toml(_cls: &Bound<'_, PyType>, py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let name = path.display().to_string();
+        py.detach(|| {
+            // as `ctr-cli` reads it: bytes, then UTF-8, then TOML
+            let bytes = std::fs::read(&path).map_err(|source| {
+                Error::new(
+                    Location::file(&name),
+                    ErrorKind::Io {
+                        action: "read",
+                        source,
+                    },
+                )
+            })?;
+            let text = String::from_utf8(bytes).map_err(|e| {
+                Error::new(
+                    Location::file(&name),
+                    ErrorKind::Io {
+                        action: "read",
+                        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+                    },
+                )
+            })?;
+            RobotSpec::from_toml_str(&text, &name)
+        })
+        .map(|spec| Robot::new(spec, name.clone()))
+        .map_err(|e| errors::to_py(&e))
+    }
+
+    /// Parses robot TOML text; errors name the file `name`.
+    #[classmethod]
+    #[pyo3(signature = (text, name = "<string>"))]
+    fn from_toml_str(_cls: &Bound<'_, PyType>, text: &str, name: &str) -> PyResult<Self> {
+        RobotSpec::from_toml_str(text, name)
+            .map(|spec| Robot::new(spec, name.to_owned()))
+            .map_err(|e| errors::to_py(&e))
+    }
+
+    /// The robot file's TOML text (with an explicit `[model]`).
+    fn to_toml(&self) -> String {
+        self.spec.to_toml()
+    }
+
+    /// Number of tubes.
+    #[getter]
+    fn n_tubes(&self) -> usize {
+        self.spec.robot.n_tubes()
+    }
+
+    /// The robot's `name`, if the file has one.
+    #[getter]
+    fn name(&self) -> Option<String> {
+        self.spec.name.clone()
+    }
+
+    /// The file's `[model] kind`: `"rigid"` or `"torsion"`.
+    #[getter]
+    fn model(&self) -> &'static str {
+        model_name(self.spec.model)
+    }
+
+    /// Joint names in file order: `s1_mm, theta1_deg, ...`.
+    #[getter]
+    fn joint_columns(&self) -> Vec<String> {
+        self.spec.robot.joint_columns()
+    }
+
+    /// The file name errors give.
+    #[getter]
+    fn source(&self) -> &str {
+        &self.source
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot(name={}, n_tubes={}, model='{}', source='{}')",
+            self.spec
+                .name
+                .as_ref()
+                .map_or("None".to_owned(), |n| format!("{n:?}")),
+            self.n_tubes(),
+            self.model(),
+            self.source
+        )
+    }
+
+    fn __eq__(&self, other: &Bound<'_, PyAny>) -> bool {
+        other
+            .cast::<Robot>()
+            .is_ok_and(|o| o.get().spec == self.spec)
+    }
+
+    /// Pickles as its TOML text (and file name).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, (String, String))> {
+        let r = slf.get();
+        Ok((
+            slf.get_type().getattr("from_toml_str")?,
+            (r.spec.to_toml(), r.source.clone()),
+        ))
+    }
+
+    /// Tip forward kinematics of joint rows; see `_ctr.pyi`.
+    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = 0))]
+    fn fk<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        model: Option<&str>,
+        on_error: &str,
+        threads: usize,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let model = self.model_arg(model)?;
+        let threads = threads_arg(threads)?;
+        let mark = match on_error {
+            "fail" => false,
+            "mark" => true,
+            other => {
+                return Err(errors::input(format!(
+                    "on_error: \"{other}\" is not fail or mark"
+                )))
+            }
+        };
+        let rows = self.read_joints(q, "q")?;
+        let options = BatchOptions {
+            model,
+            threads,
+            chunk_rows: WARM_CHUNK_ROWS,
+        };
+        let (positions, quaternions, statuses, residuals) = py
+            .detach(|| -> Result<_, Error> {
+                self.check_joints(&rows, "q")?;
+                let results = batch_fk(&self.spec.robot, &rows.data, &options, &());
+                let m = rows.rows;
+                let mut positions = Vec::with_capacity(3 * m);
+                let mut quaternions = Vec::with_capacity(4 * m);
+                let mut statuses = Vec::with_capacity(if mark { m } else { 0 });
+                let mut residuals = Vec::with_capacity(if mark { m } else { 0 });
+                let mut failed = 0;
+                let mut first_failure = None;
+                for (i, r) in results.into_iter().enumerate() {
+                    let at = || errors::at("q", i, rows.batched);
+                    let fk = r.map_err(|e| Error::new(at(), ErrorKind::Joint(e)))?;
+                    if fk.status != Status::Converged {
+                        failed += 1;
+                        first_failure.get_or_insert((at(), fk.status, fk.residual_per_mm));
+                    }
+                    positions.extend_from_slice(&fk.position);
+                    quaternions.extend_from_slice(&fk.quaternion);
+                    if mark {
+                        statuses.push(status_name(fk.status));
+                        residuals.push(fk.residual_per_mm);
+                    }
+                }
+                if let (false, Some((at, status, residual))) = (mark, first_failure) {
+                    return Err(solver_failed(at, status, residual, failed, m));
+                }
+                Ok((positions, quaternions, statuses, residuals))
+            })
+            .map_err(|e| errors::to_py(&e))?;
+        let mut out = vec![
+            arrays::array(py, positions, &shape(&rows, &[3]))?,
+            arrays::array(py, quaternions, &shape(&rows, &[4]))?,
+        ];
+        if mark {
+            out.push(per_row(py, rows.batched, statuses, |py, v| {
+                arrays::strings(py, &v)
+            })?);
+            let m = rows.rows;
+            out.push(per_row(py, rows.batched, residuals, |py, v| {
+                arrays::array(py, v, &[m])
+            })?);
+        }
+        PyTuple::new(py, out)
+    }
+
+    /// Backbone points of one joint vector; see `_ctr.pyi`.
+    #[pyo3(signature = (q, model = None))]
+    fn backbone<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        model: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let model = self.model_arg(model)?;
+        let rows = self.read_joints(q, "q")?;
+        if rows.batched {
+            return Err(errors::input(format!(
+                "q: backbone takes one joint vector of shape ({},), not a batch of {}",
+                rows.width, rows.rows
+            )));
+        }
+        let points = py
+            .detach(|| -> Result<Vec<f64>, Error> {
+                self.check_joints(&rows, "q")?;
+                let q = rows.row(0);
+                let solved = match &self.spec.robot {
+                    AnyRobot::One(r) => backbone_of(r, q, model),
+                    AnyRobot::Two(r) => backbone_of(r, q, model),
+                    AnyRobot::Three(r) => backbone_of(r, q, model),
+                    AnyRobot::Four(r) => backbone_of(r, q, model),
+                };
+                let (status, residual, points) =
+                    solved.map_err(|e| Error::new(Location::file("q"), ErrorKind::Joint(e)))?;
+                if status != Status::Converged {
+                    return Err(solver_failed(Location::file("q"), status, residual, 1, 1));
+                }
+                Ok(points)
+            })
+            .map_err(|e| errors::to_py(&e))?;
+        let k = points.len() / 3;
+        arrays::array(py, points, &[k, 3])
+    }
+
+    /// Tip Jacobian(s) per file unit; see `_ctr.pyi`.
+    #[pyo3(signature = (q, model = None, *, threads = 0))]
+    fn jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        model: Option<&str>,
+        threads: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let model = self.model_arg(model)?;
+        let threads = threads_arg(threads)?;
+        let rows = self.read_joints(q, "q")?;
+        let n = self.n_joints();
+        let data = py
+            .detach(|| -> Result<Vec<f64>, Fail> {
+                self.check_joints(&rows, "q")?;
+                let ik = self.solver(model, true)?;
+                let jacobians = parallel::map(
+                    rows.rows,
+                    threads,
+                    || (),
+                    |(), i| ik.tip_jacobian(rows.row(i)),
+                );
+                let mut data = Vec::with_capacity(rows.rows * 6 * n);
+                for (i, j) in jacobians.into_iter().enumerate() {
+                    let Some(j) = j else {
+                        return Err(Fail::Solver(format!(
+                            "{}: no Jacobian: the forward kinematics does not converge there",
+                            errors::at("q", i, rows.batched)
+                        )));
+                    };
+                    for r in 0..6 {
+                        data.extend(j.iter().map(|column| column[r]));
+                    }
+                }
+                Ok(data)
+            })
+            .map_err(Fail::into_py)?;
+        arrays::array(py, data, &shape(&rows, &[6, n]))
+    }
+
+    /// Inverse kinematics; see `_ctr.pyi`.
+    #[pyo3(signature = (targets, q0 = None, *, model = None, trajectory = false, threads = 0))]
+    fn ik<'py>(
+        &self,
+        py: Python<'py>,
+        targets: &Bound<'py, PyAny>,
+        q0: Option<&Bound<'py, PyAny>>,
+        model: Option<&str>,
+        trajectory: bool,
+        threads: usize,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let model = self.model_arg(model)?;
+        let threads = threads_arg(threads)?;
+        let t = arrays::read_rows(
+            targets,
+            "targets",
+            &[3, 7],
+            "x_mm, y_mm, z_mm or x_mm, y_mm, z_mm, qw, qx, qy, qz",
+        )?;
+        let q0 = q0.map(|o| self.read_joints(o, "q0")).transpose()?;
+        if let Some(q0) = &q0 {
+            if q0.batched && trajectory {
+                return Err(errors::input(format!(
+                    "q0: a trajectory starts from one joint vector of shape ({},), not a batch",
+                    q0.width
+                )));
+            }
+            if q0.batched && (!t.batched || q0.rows != t.rows) {
+                return Err(errors::input(format!(
+                    "q0: {} rows for {} target{} (give one start, or one per target)",
+                    q0.rows,
+                    t.rows,
+                    if t.rows == 1 { "" } else { "s" }
+                )));
+            }
+        }
+        let n = self.n_joints();
+        let (q, residuals, statuses) = py
+            .detach(|| -> Result<_, Fail> {
+                let targets = Robot::targets(&t)?;
+                let starts: Option<Vec<Vec<f64>>> = match &q0 {
+                    None => None,
+                    Some(rows) => {
+                        self.check_joints(rows, "q0")?;
+                        Some((0..rows.rows).map(|i| rows.row(i).to_vec()).collect())
+                    }
+                };
+                let ik = self.solver(model, false)?;
+                let start = |i: usize| -> Option<Vec<f64>> {
+                    let s = starts.as_ref()?;
+                    Some(ik.from_file_units(&s[i.min(s.len() - 1)]))
+                };
+                let results = if trajectory {
+                    ik.clone().solve_trajectory(&targets, start(0).as_deref())
+                } else {
+                    parallel::map(
+                        targets.len(),
+                        threads,
+                        || ik.clone(),
+                        |ik, i| ik.solve(&targets[i], start(i).as_deref()),
+                    )
+                };
+                let mut q = Vec::with_capacity(n * results.len());
+                let mut residuals = Vec::with_capacity(results.len());
+                let mut statuses = Vec::with_capacity(results.len());
+                for r in &results {
+                    q.extend(ik.to_file_units(&r.q));
+                    residuals.push(r.residual_mm);
+                    statuses.push(r.status.name());
+                }
+                Ok((q, residuals, statuses))
+            })
+            .map_err(Fail::into_py)?;
+        let m = t.rows;
+        let out = [
+            arrays::array(py, q, &shape(&t, &[n]))?,
+            per_row(py, t.batched, residuals, |py, v| arrays::array(py, v, &[m]))?,
+            per_row(py, t.batched, statuses, |py, v| arrays::strings(py, &v))?,
+        ];
+        PyTuple::new(py, out)
+    }
+}

@@ -1,0 +1,39 @@
+"""Fixtures of the ctr_py suite: the repository, the robots, and the `ctr-cli` binary
+the wheel's results are compared with (built with cargo if needed)."""
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+ROBOTS = sorted((REPO / "data" / "robots").glob("*.toml"))
+
+
+@pytest.fixture(scope="session")
+def cli() -> Path:
+    """Path of `ctr-cli`: $CTR_CLI, or the workspace's release build (built now, a
+    no-op when it is up to date)."""
+    if os.environ.get("CTR_CLI"):
+        return Path(os.environ["CTR_CLI"])
+    cargo = shutil.which("cargo")
+    if cargo is None:
+        pytest.skip("cargo not found: set CTR_CLI to compare with ctr-cli")
+    subprocess.run(
+        [cargo, "build", "--release", "--locked", "-q", "-p", "ctr-cli"],
+        cwd=REPO,
+        check=True,
+    )
+    meta = subprocess.run(
+        [cargo, "metadata", "--format-version", "1", "--no-deps", "--locked"],
+        cwd=REPO,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    exe = Path(json.loads(meta.stdout)["target_directory"]) / "release" / "ctr-cli"
+    assert exe.exists(), exe
+    return exe
