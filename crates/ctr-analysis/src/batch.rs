@@ -1,19 +1,24 @@
 //! Forward kinematics over many rows, in parallel, with results independent of the
-//! thread count.
+//! thread count; and the chunked parallel runner that the file jobs (`ctr-cli fk`,
+//! `ctr-cli ik`) are built on.
 //!
 //! The rows are cut into chunks of [`BatchOptions::chunk_rows`] consecutive rows
 //! (boundaries at multiples of `chunk_rows`, whatever the thread count). Each chunk is
 //! solved by one worker with a fresh core [`Solver`](ctr_core::Solver) that warm-starts
 //! every row from the previous rows of the same chunk, exactly as calling
 //! `Solver::solve` row by row over that chunk would. Workers take chunks from a shared
-//! queue and write into the chunk's own slots, so the output is in input order and bit
-//! for bit the same for 1 or 64 threads. Warm start changes a converged result only below
-//! the Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but the fixed chunking
-//! makes even those last bits reproducible.
+//! counter; the results are handed back in input order ([`for_each_chunk`]), so the
+//! output is bit for bit the same for 1 or 64 threads. Warm start changes a converged
+//! result only below the Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but
+//! the fixed chunking makes even those last bits reproducible.
 
+use crate::ik::{Ik, IkResult, IkTarget};
 use crate::robot::{AnyRobot, FkResult};
 use ctr_core::{JointError, Model};
-use std::sync::Mutex;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
 
 /// Default rows per warm-started chunk.
 pub const WARM_CHUNK_ROWS: usize = 32;
@@ -94,39 +99,255 @@ pub fn batch_fk(
         joints.len()
     );
     let rows = joints.len() / width;
-    let chunk = options.chunk_rows.max(1);
-    let mut out: Vec<Option<Result<FkResult, JointError>>> = vec![None; rows];
-    progress.start(rows);
-    let solve_chunk = |input: &[f64], slots: &mut [Option<Result<FkResult, JointError>>]| {
-        let mut solver = robot.solver();
-        for (q, slot) in input.chunks_exact(width).zip(slots.iter_mut()) {
-            *slot = Some(solver.fk(q, options.model));
-        }
-        progress.advance(slots.len());
-    };
+    let mut out = Vec::with_capacity(rows);
+    for_each_chunk(
+        rows,
+        options.chunk_rows,
+        options.threads,
+        progress,
+        || (),
+        |(), range| {
+            let mut solver = robot.solver();
+            range
+                .map(|row| solver.fk(&joints[row * width..(row + 1) * width], options.model))
+                .collect::<Vec<_>>()
+        },
+        |_, results| {
+            out.extend(results);
+            true
+        },
+    );
+    out
+}
+
+/// Runs `work` over the rows `0..rows` in chunks of `chunk_rows` consecutive rows
+/// (boundaries at multiples of `chunk_rows`; at least 1) on `threads` workers (0 = all
+/// cores), and hands every chunk's result to `consume` on the calling thread, in chunk
+/// order, as soon as it and all chunks before it are done.
+///
+/// Each worker builds its own state with `init` and passes it to `work` for every
+/// chunk it takes; for results independent of the thread count, `work`'s result must
+/// depend only on the chunk (not on the state's history). When `consume` returns
+/// `false`, no further chunks are started and none are consumed. `progress` hears of
+/// every chunk done.
+pub fn for_each_chunk<S, T, I, W, C>(
+    rows: usize,
+    chunk_rows: usize,
+    threads: usize,
+    progress: &dyn Progress,
+    init: I,
+    work: W,
+    mut consume: C,
+) where
+    T: Send,
+    I: Fn() -> S + Sync,
+    W: Fn(&mut S, Range<usize>) -> T + Sync,
+    C: FnMut(Range<usize>, T) -> bool,
+{
+    let chunk = chunk_rows.max(1);
     let chunks = rows.div_ceil(chunk);
-    let threads = resolve_threads(options.threads).min(chunks).max(1);
-    let queue = Mutex::new(joints.chunks(chunk * width).zip(out.chunks_mut(chunk)));
-    let work = || loop {
-        let next = queue.lock().map(|mut q| q.next());
-        match next {
-            Ok(Some((input, slots))) => solve_chunk(input, slots),
-            // a poisoned queue means another worker panicked; the scope re-raises it
-            Ok(None) | Err(_) => break,
-        }
-    };
+    let range = |k: usize| k * chunk..((k + 1) * chunk).min(rows);
+    let threads = resolve_threads(threads).min(chunks).max(1);
+    progress.start(rows);
     if threads == 1 {
-        work();
-    } else {
-        std::thread::scope(|s| {
-            for _ in 1..threads {
-                s.spawn(work);
+        let mut state = init();
+        for k in 0..chunks {
+            let r = range(k);
+            let t = work(&mut state, r.clone());
+            progress.advance(r.len());
+            if !consume(r, t) {
+                break;
             }
-            work();
-        });
+        }
+        progress.finish();
+        return;
     }
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        let (tx, rx) = mpsc::channel::<(usize, T)>();
+        for _ in 0..threads {
+            let tx = tx.clone();
+            let (next, stop, init, work) = (&next, &stop, &init, &work);
+            s.spawn(move || {
+                let mut state = init();
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    if k >= chunks || stop.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let r = range(k);
+                    let len = r.len();
+                    let t = work(&mut state, r);
+                    progress.advance(len);
+                    if tx.send((k, t)).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        let mut pending = BTreeMap::new();
+        let mut want = 0;
+        // a worker that panics drops its sender: `recv` fails once all are gone and
+        // the scope re-raises the panic
+        while want < chunks {
+            let t = match pending.remove(&want) {
+                Some(t) => t,
+                None => match rx.recv() {
+                    Ok((k, t)) => {
+                        pending.insert(k, t);
+                        continue;
+                    }
+                    Err(_) => break,
+                },
+            };
+            if !consume(range(want), t) {
+                stop.store(true, Ordering::Relaxed);
+                break;
+            }
+            want += 1;
+        }
+        // unblock the workers and let them finish
+        drop(rx);
+    });
     progress.finish();
-    out.into_iter()
-        .map(|r| r.expect("every chunk is solved"))
-        .collect()
+}
+
+/// Rows per chunk of [`batch_ik`].
+pub const IK_CHUNK_ROWS: usize = 32;
+
+/// How to run a batch of inverse-kinematics targets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IkBatchOptions {
+    /// Worker threads; 0 = all available cores. The results do not depend on it.
+    pub threads: usize,
+    /// Rows per chunk (at least 1). The results depend on this, never on `threads`.
+    pub chunk_rows: usize,
+    /// Warm start along the rows (a trajectory); `false`: every target is solved cold
+    /// from the start table, independently (scattered targets).
+    pub warm: bool,
+}
+
+impl Default for IkBatchOptions {
+    fn default() -> Self {
+        IkBatchOptions {
+            threads: 0,
+            chunk_rows: IK_CHUNK_ROWS,
+            warm: true,
+        }
+    }
+}
+
+/// Solves every target with `ik` (cloned for each worker) and hands the results to
+/// `consume` chunk by chunk, in order, on the calling thread (as [`for_each_chunk`];
+/// `consume` returning `false` stops the batch).
+///
+/// Warm (`options.warm`), the rows are a trajectory: each row starts from the
+/// previous row's result. To run in parallel with results independent of the thread
+/// count, the rows are cut into chunks of `chunk_rows` (boundaries at multiples of it)
+/// and solved in two passes:
+///
+/// 1. in order, on the calling thread: the first row of every chunk, each started from
+///    the first row of the chunk before (the very first row cold); these rows are a
+///    coarse trajectory, `chunk_rows` rows a step, so they stay on one branch of
+///    solutions when the trajectory is smooth;
+/// 2. in parallel: the other rows of each chunk, each from the row before it.
+///
+/// Every row thus starts from a joint vector fixed by the rows before it and the chunk
+/// size alone, and an [`Ik`] solve depends only on its arguments: the same results, bit
+/// for bit, on any number of threads. Across a chunk boundary the joints come from two
+/// different warm-start paths (both from the previous chunk's first row); they agree
+/// to the solver's tolerance in tip position, not necessarily in joints when the robot
+/// is redundant for the target (e.g. 6 joints for a position).
+///
+/// Cold, every row is solved from the start table on its own (pass 2 only).
+///
+/// ```
+/// use ctr_analysis::batch::{batch_ik, IkBatchOptions};
+/// use ctr_analysis::formats::RobotSpec;
+/// use ctr_analysis::ik::{Ik, IkOptions, IkTarget};
+/// let spec = RobotSpec::from_toml_str(r#"
+/// [[tube]]
+/// outer_diameter_mm = 1.2
+/// inner_diameter_mm = 0.9
+/// length_mm = 260.0
+/// curved_length_mm = 90.0
+/// curvature_radius_mm = 100.0
+/// youngs_modulus_mpa = 58000.0
+/// poisson_ratio = 0.33
+/// "#, "robot.toml")?;
+/// let ik = Ik::from_spec(&spec, IkOptions::default())?;
+/// let targets: Vec<IkTarget> = (0..40)
+///     .map(|k| IkTarget::position(ik.fk(&[40.0 + k as f64, 0.1]).unwrap().position.into()))
+///     .collect();
+/// let solve = |threads| {
+///     let mut all = Vec::new();
+///     let options = IkBatchOptions { threads, ..Default::default() };
+///     batch_ik(&ik, &targets, &options, &(), |_, r| { all.extend(r); true });
+///     all
+/// };
+/// assert_eq!(solve(1), solve(3));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn batch_ik(
+    ik: &Ik,
+    targets: &[IkTarget],
+    options: &IkBatchOptions,
+    progress: &dyn Progress,
+    consume: impl FnMut(Range<usize>, Vec<IkResult>) -> bool,
+) {
+    let rows = targets.len();
+    let chunk = options.chunk_rows.max(1);
+    let chunks = rows.div_ceil(chunk);
+    progress.start(rows);
+    // pass 1: the first row of every chunk, in order
+    let mut firsts: Vec<Option<IkResult>> = Vec::new();
+    if options.warm {
+        let mut solver = ik.clone();
+        let mut prev: Option<Vec<f64>> = None;
+        for k in 0..chunks {
+            let r = solver.solve(&targets[k * chunk], prev.as_deref());
+            prev = Some(r.q.clone());
+            firsts.push(Some(r));
+            progress.advance(1);
+        }
+    }
+    let firsts: Vec<std::sync::Mutex<Option<IkResult>>> =
+        firsts.into_iter().map(std::sync::Mutex::new).collect();
+    // pass 2: the chunks, in parallel
+    for_each_chunk(
+        rows,
+        chunk,
+        options.threads,
+        &(),
+        || ik.clone(),
+        |solver, range| {
+            let mut out = Vec::with_capacity(range.len());
+            let mut done = 0;
+            for row in range {
+                let r = if !options.warm {
+                    solver.solve(&targets[row], None)
+                } else if row % chunk == 0 {
+                    let first = firsts[row / chunk].lock().map(|mut f| f.take());
+                    match first {
+                        Ok(Some(r)) => r,
+                        // unreachable: each chunk is taken once
+                        _ => solver.solve(&targets[row], None),
+                    }
+                } else {
+                    let prev: &IkResult = out.last().expect("the chunk's first row is solved");
+                    solver.solve(&targets[row], Some(&prev.q))
+                };
+                if !(options.warm && row % chunk == 0) {
+                    done += 1;
+                }
+                out.push(r);
+            }
+            progress.advance(done);
+            out
+        },
+        consume,
+    );
+    progress.finish();
 }

@@ -163,6 +163,18 @@ pub enum ErrorKind {
         /// the cell as found
         found: String,
     },
+    /// A target orientation `qw,qx,qy,qz` is not a unit quaternion.
+    #[error("qw,qx,qy,qz = {}, {}, {}, {} has norm {norm}: expected a unit quaternion (norm 1 within 1e-3)", .q[0], .q[1], .q[2], .q[3])]
+    NotUnitQuaternion {
+        /// the quaternion as read, `w, x, y, z`
+        q: [f64; 4],
+        /// its norm
+        norm: f64,
+    },
+    /// The inverse kinematics cannot be set up for the robot (its limits leave no
+    /// joint vector) or with the options given.
+    #[error("{0}")]
+    Ik(crate::ik::IkError),
     /// A row has a different number of fields than the header.
     #[error("row has {found} field{}, the header has {expected}", if *.found == 1 { "" } else { "s" })]
     RaggedRow {

@@ -1,14 +1,22 @@
-//! A whole forward-kinematics job, files to files: what `ctr-cli fk` runs.
+//! Whole jobs, files to files: forward kinematics ([`run_fk`], what `ctr-cli fk` runs)
+//! and inverse kinematics ([`run_ik`], `ctr-cli ik`).
 //!
 //! Order of work: read and validate the robot, read and check every joint row, check the
 //! output header, open the output (a temporary file beside it, so a missing directory
-//! fails before any solving), solve in parallel, apply the [`OnError`] policy, write,
-//! and only then rename the output into place. Any error before the rename leaves an
-//! existing output untouched.
+//! fails before any solving), then solve and format in parallel, chunk by chunk
+//! ([`for_each_chunk`]: the warm-start chunks of [`crate::batch`]), writing the chunks
+//! in order as they are done; apply the [`OnError`] policy, and only then rename the
+//! output into place. Any error before the rename leaves an existing output untouched
+//! (the temporary file is removed); standard output is written only at the end.
 
-use crate::batch::{batch_fk, BatchOptions, Progress, WARM_CHUNK_ROWS};
+use crate::batch::{batch_ik, for_each_chunk, IkBatchOptions, Progress, WARM_CHUNK_ROWS};
 use crate::error::{Error, ErrorKind, Location};
-use crate::formats::{tip_header, AtomicFile, JointTable, RobotSpec, TipWriter};
+use crate::formats::targets::write_ik_row;
+use crate::formats::tips::{write_header, write_tip_row, Carried};
+use crate::formats::{
+    ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable,
+};
+use crate::ik::{Ik, IkOptions, IkStatus};
 use ctr_core::{Model, Status};
 use std::io::{Read, Write};
 use std::path::PathBuf;
@@ -105,59 +113,107 @@ fn read_input(input: &Input) -> Result<(String, Vec<u8>), Error> {
     }
 }
 
+/// Warm-start chunks a worker of [`run_fk`] takes at a time.
+const UNIT_CHUNKS: usize = 16;
+
 /// Runs a job; see the module docs for the order of work.
 pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> {
-    let spec = {
-        let (name, bytes) = read_input(&job.robot)?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            Error::new(
-                Location::file(&name),
-                ErrorKind::Io {
-                    action: "read",
-                    source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-                },
-            )
-        })?;
-        RobotSpec::from_toml_str(&text, &name)?
-    };
+    let spec = read_robot(&job.robot)?;
     let model = job.model.unwrap_or(spec.model);
-    let table = match &job.joints {
-        Input::Path(p) => JointTable::from_path(p, &spec.robot)?,
-        Input::Stdin => {
-            let (name, bytes) = read_input(&job.joints)?;
-            JointTable::read(bytes.as_slice(), &name, &spec.robot)?
-        }
+    let table = {
+        let (name, bytes) = read_input(&job.joints)?;
+        JointTable::from_bytes(bytes, &name, &spec.robot, job.threads)?
     };
     let mark = job.on_error == OnError::Mark;
+    let skip = job.on_error == OnError::Skip;
     let header = tip_header(table.header(), mark)
         .map_err(|kind| Error::new(Location::line(table.file(), 1), kind))?;
-    let mut file = match &job.output {
-        Output::Path(p) => Some(AtomicFile::create(p)?),
-        Output::Stdout => None,
-    };
-    let options = BatchOptions {
-        model,
-        threads: job.threads,
-        chunk_rows: WARM_CHUNK_ROWS,
-    };
-    let results = batch_fk(&spec.robot, table.all_joints(), &options, progress);
-    let mut solved = Vec::with_capacity(results.len());
+    let mut sink = Sink::open(&job.output)?;
+    let mut head = Vec::new();
+    write_header(&mut head, &header);
+    sink.write(&head)?;
+
+    /// One chunk's rows, formatted.
+    struct Chunk {
+        text: Vec<u8>,
+        written: usize,
+        failures: Vec<RowFailure>,
+        joint_error: Option<(usize, ctr_core::JointError)>,
+    }
     let mut failures = Vec::new();
-    for (row, r) in results.into_iter().enumerate() {
-        let fk = r.map_err(|e| {
-            Error::new(
-                Location::line(table.file(), table.line(row)),
-                ErrorKind::Joint(e),
-            )
-        })?;
-        if fk.status != Status::Converged {
-            failures.push(RowFailure {
-                line: table.line(row),
-                status: fk.status,
-                residual_per_mm: fk.residual_per_mm,
-            });
-        }
-        solved.push(fk);
+    let mut written = 0;
+    let mut failed: Option<Error> = None;
+    // a worker takes UNIT_CHUNKS warm-start chunks at a time (fewer hand-overs), each
+    // solved from a fresh solver as batch_fk does: the same numbers
+    for_each_chunk(
+        table.len(),
+        WARM_CHUNK_ROWS * UNIT_CHUNKS,
+        job.threads,
+        progress,
+        || (),
+        |(), rows| {
+            let mut solver = spec.robot.solver();
+            let mut chunk = Chunk {
+                text: Vec::with_capacity(rows.len() * (table.header().len() * 12 + 180)),
+                written: 0,
+                failures: Vec::new(),
+                joint_error: None,
+            };
+            for row in rows {
+                if row % WARM_CHUNK_ROWS == 0 {
+                    solver = spec.robot.solver();
+                }
+                let fk = match solver.fk(table.joints(row), model) {
+                    Ok(fk) => fk,
+                    Err(e) => {
+                        chunk.joint_error = Some((row, e));
+                        break;
+                    }
+                };
+                if fk.status != Status::Converged {
+                    chunk.failures.push(RowFailure {
+                        line: table.line(row),
+                        status: fk.status,
+                        residual_per_mm: fk.residual_per_mm,
+                    });
+                    if skip {
+                        continue;
+                    }
+                }
+                let carried = match table.plain_line(row) {
+                    Some(line) => Carried::Line(line),
+                    None => Carried::Fields(table.fields(row)),
+                };
+                write_tip_row(&mut chunk.text, carried, &fk, mark);
+                chunk.written += 1;
+            }
+            chunk
+        },
+        |_, chunk| {
+            if let Some((row, e)) = chunk.joint_error {
+                failed = Some(Error::new(
+                    Location::line(table.file(), table.line(row)),
+                    ErrorKind::Joint(e),
+                ));
+                return false;
+            }
+            failures.extend(chunk.failures);
+            if job.on_error == OnError::Fail && !failures.is_empty() {
+                // nothing will be written: keep solving only to count the failures
+                return true;
+            }
+            written += chunk.written;
+            match sink.write(&chunk.text) {
+                Ok(()) => true,
+                Err(e) => {
+                    failed = Some(e);
+                    false
+                }
+            }
+        },
+    );
+    if let Some(e) = failed {
+        return Err(e);
     }
     if job.on_error == OnError::Fail {
         if let Some(first) = failures.first() {
@@ -167,50 +223,226 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                     status: first.status,
                     residual_per_mm: first.residual_per_mm,
                     failed: failures.len(),
-                    rows: solved.len(),
+                    rows: table.len(),
                 },
             ));
         }
     }
-    let out_name = match &job.output {
-        Output::Path(p) => p.display().to_string(),
-        Output::Stdout => "<stdout>".to_owned(),
-    };
-    let out_error = |kind| Error::new(Location::file(&out_name), kind);
-    let mut buffer = Vec::new();
-    let sink: &mut dyn Write = match &mut file {
-        Some(f) => f,
-        None => &mut buffer,
-    };
-    let mut writer = TipWriter::new(sink, &header, mark).map_err(out_error)?;
-    let mut written = 0;
-    for (row, fk) in solved.iter().enumerate() {
-        if job.on_error == OnError::Skip && fk.status != Status::Converged {
-            continue;
-        }
-        writer.write_row(table.fields(row), fk).map_err(out_error)?;
-        written += 1;
-    }
-    writer.finish().map_err(out_error)?;
-    match file {
-        Some(f) => f.commit()?,
-        None => {
-            let mut stdout = std::io::stdout().lock();
-            stdout
-                .write_all(&buffer)
-                .and_then(|()| stdout.flush())
-                .map_err(|source| {
-                    out_error(ErrorKind::Io {
-                        action: "write",
-                        source,
-                    })
-                })?;
-        }
-    }
+    sink.commit()?;
     Ok(FkSummary {
         joints_file: table.file().to_owned(),
-        rows: solved.len(),
+        rows: table.len(),
         written,
         failures,
+    })
+}
+
+/// Reads and validates the robot file.
+fn read_robot(input: &Input) -> Result<RobotSpec, Error> {
+    let (name, bytes) = read_input(input)?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        Error::new(
+            Location::file(&name),
+            ErrorKind::Io {
+                action: "read",
+                source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+            },
+        )
+    })?;
+    RobotSpec::from_toml_str(&text, &name)
+}
+
+/// Where a job's output goes until it is complete: a temporary file beside the target,
+/// or a buffer for standard output (written only when the job succeeded).
+enum Sink {
+    File(AtomicFile, String),
+    Stdout(Vec<u8>),
+}
+
+impl Sink {
+    /// Opens the output (a missing directory fails here, before any solving).
+    fn open(output: &Output) -> Result<Sink, Error> {
+        Ok(match output {
+            Output::Path(p) => Sink::File(AtomicFile::create(p)?, p.display().to_string()),
+            Output::Stdout => Sink::Stdout(Vec::new()),
+        })
+    }
+
+    fn name(&self) -> &str {
+        match self {
+            Sink::File(_, name) => name,
+            Sink::Stdout(_) => "<stdout>",
+        }
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> Result<(), Error> {
+        let result = match self {
+            Sink::File(f, _) => f.write_all(bytes),
+            Sink::Stdout(buf) => {
+                buf.extend_from_slice(bytes);
+                Ok(())
+            }
+        };
+        result.map_err(|source| self.error(source))
+    }
+
+    fn error(&self, source: std::io::Error) -> Error {
+        Error::new(
+            Location::file(self.name()),
+            ErrorKind::Io {
+                action: "write",
+                source,
+            },
+        )
+    }
+
+    /// Renames the file into place, or writes the buffer to standard output.
+    fn commit(self) -> Result<(), Error> {
+        match self {
+            Sink::File(f, _) => f.commit(),
+            Sink::Stdout(buf) => {
+                let mut stdout = std::io::stdout().lock();
+                stdout
+                    .write_all(&buf)
+                    .and_then(|()| stdout.flush())
+                    .map_err(|source| {
+                        Error::new(
+                            Location::file("<stdout>"),
+                            ErrorKind::Io {
+                                action: "write",
+                                source,
+                            },
+                        )
+                    })
+            }
+        }
+    }
+}
+
+/// An inverse-kinematics job: what `ctr-cli ik` runs.
+///
+/// Order of work: read and validate the robot, build the solver (its limits and start
+/// table), read and check every target row, check the output header, open the output,
+/// solve ([`batch_ik`]: warm along the rows in fixed chunks, or cold), writing the
+/// chunks in order as they are done, and rename the output into place. Every target
+/// gets a row: an unreachable one the closest point found, with its status and
+/// residual; the caller decides whether that is a failure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IkJob {
+    /// The robot TOML (its `[limits]` bound the joints).
+    pub robot: Input,
+    /// The target CSV.
+    pub targets: Input,
+    /// The joint CSV to write.
+    pub output: Output,
+    /// Overrides the robot file's `[model] kind`.
+    pub model: Option<Model>,
+    /// Solver settings.
+    pub options: IkOptions,
+    /// Read `qw,qx,qy,qz` as ordinary columns (position targets only).
+    pub position_only: bool,
+    /// Warm start along the rows (`true`) or solve every target cold.
+    pub warm: bool,
+    /// Rows per warm-started chunk ([`batch_ik`]); 0: the whole file is one chunk.
+    pub chunk_rows: usize,
+    /// Worker threads, 0 = all cores (the output does not depend on it).
+    pub threads: usize,
+}
+
+/// A target that was not reached.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IkRowFailure {
+    /// 1-based line in the target file.
+    pub line: usize,
+    /// How the solve ended.
+    pub status: IkStatus,
+    /// Distance from the closest point found to the target, mm.
+    pub residual_mm: f64,
+    /// Angle to the target orientation, rad (pose targets).
+    pub orientation_residual_rad: Option<f64>,
+}
+
+/// What a finished IK job did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IkSummary {
+    /// The target file's name as used in messages.
+    pub targets_file: String,
+    /// Rows solved (all written).
+    pub rows: usize,
+    /// Targets not reached, in input order.
+    pub not_reached: Vec<IkRowFailure>,
+}
+
+/// Runs an IK job; see [`IkJob`] for the order of work.
+pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> {
+    let (robot_name, spec) = {
+        let name = match &job.robot {
+            Input::Stdin => "<stdin>".to_owned(),
+            Input::Path(p) => p.display().to_string(),
+        };
+        (name, read_robot(&job.robot)?)
+    };
+    let model = job.model.unwrap_or(spec.model);
+    let ik = Ik::new(&spec.robot, model, spec.limits.as_deref(), job.options)
+        .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(e)))?;
+    let table = {
+        let (name, bytes) = read_input(&job.targets)?;
+        TargetTable::from_bytes(bytes, &name, job.position_only, job.threads)?
+    };
+    let pose = table.has_orientation();
+    let columns = ik_output_columns(table.header(), spec.robot.n_tubes(), pose);
+    let mut sink = Sink::open(&job.output)?;
+    let mut head = Vec::new();
+    write_header(&mut head, &columns.header);
+    sink.write(&head)?;
+    let targets = table.targets();
+    let options = IkBatchOptions {
+        threads: job.threads,
+        chunk_rows: if job.chunk_rows == 0 {
+            targets.len().max(1)
+        } else {
+            job.chunk_rows
+        },
+        warm: job.warm,
+    };
+    let mut not_reached = Vec::new();
+    let mut failed = None;
+    let mut text = Vec::new();
+    batch_ik(&ik, &targets, &options, progress, |range, results| {
+        text.clear();
+        for (row, r) in range.zip(&results) {
+            if r.status != IkStatus::Reached {
+                not_reached.push(IkRowFailure {
+                    line: table.line(row),
+                    status: r.status,
+                    residual_mm: r.residual_mm,
+                    orientation_residual_rad: r.orientation_residual_rad,
+                });
+            }
+            let joints = ik.to_file_units(&r.q);
+            write_ik_row(
+                &mut text,
+                table.carried(row, &columns.carried),
+                &joints,
+                r,
+                pose,
+            );
+        }
+        match sink.write(&text) {
+            Ok(()) => true,
+            Err(e) => {
+                failed = Some(e);
+                false
+            }
+        }
+    });
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    sink.commit()?;
+    Ok(IkSummary {
+        targets_file: table.file().to_owned(),
+        rows: table.len(),
+        not_reached,
     })
 }

@@ -1,11 +1,12 @@
-//! The std layer shared by the CLI and the Python wheel: file formats and batch forward
-//! kinematics (inverse kinematics, fitting and diagnosis will follow).
+//! The std layer shared by the CLI and the Python wheel: file formats, batch forward
+//! kinematics and inverse kinematics (fitting and diagnosis will follow).
 //!
 //! Data flows one way: files ([`formats`]) -> a validated robot ([`AnyRobot`], the
-//! core's `Robot<f64, N>` for a tube count known at run time) and checked joints ->
-//! core solves ([`batch`], parallel, thread-count independent) -> tip files. [`job`]
-//! strings these together for `ctr-cli fk`. All numerics are the core's; this crate
-//! only reads, dispatches and writes.
+//! core's `Robot<f64, N>` for a tube count known at run time) and checked joints or
+//! targets -> core solves ([`batch`], parallel, thread-count independent; [`ik`] for
+//! targets) -> tip or joint files. [`job`] strings these together for `ctr-cli fk` and
+//! `ctr-cli ik`. The forward numerics are the core's; this crate reads, dispatches and
+//! writes, and solves the inverse problem on top of the core's forward kinematics.
 //!
 //! ```
 //! use ctr_analysis::formats::RobotSpec;

@@ -1,6 +1,8 @@
 //! Command-line options (clap derive), all in one place.
 
 use clap::{Parser, Subcommand, ValueEnum};
+use ctr_analysis::batch::IK_CHUNK_ROWS;
+use ctr_analysis::ik::IkOptions;
 use ctr_hw::emulator::Fault;
 use std::path::PathBuf;
 
@@ -14,9 +16,50 @@ status,residual_per_mm. Floats are written in shortest round-trip form.
 
 Exit status: 0 success, 1 solves did not converge (--on-error fail), 2 bad input.";
 
+const MAIN_EXAMPLE: &str = "\
+Example:
+  ctr-cli fk --robot data/robots/liu2023.toml --joints data/examples/liu2023-joints.csv -o tips.csv
+  ctr-cli ik --robot data/robots/liu2023.toml --targets data/examples/liu2023-targets.csv -o joints.csv
+
+Exit status: 0 success, 1 solves did not converge (fk --on-error fail), targets not
+reached (ik --fail-unreachable) or the rig failed (hw), 2 bad input.";
+
+const IK_HELP: &str = "\
+Example:
+  ctr-cli ik --robot data/robots/liu2023.toml --targets data/examples/liu2023-targets.csv -o joints.csv
+
+Targets: the contract's tip file: x_mm,y_mm,z_mm (tip position in W, mm) and optionally
+qw,qx,qy,qz (tip orientation, a unit quaternion: the targets are then poses;
+--position-only ignores them). The tip file `ctr-cli fk` writes is a target file.
+
+Output: the input's other columns as read, then s1_mm,theta1_deg,... (the joints,
+within the core's ranges and the robot file's [limits]), the tip reached there
+reached_x_mm,reached_y_mm,reached_z_mm (for poses also reached_qw,...,reached_qz),
+residual_mm, its distance to the target (for poses also orientation_residual_deg), and
+status: reached, unreachable (no start came within the tolerance: the closest point
+found is written), iteration_limit or fk_failed. Input columns named like an output
+column (the joints of the fk run that made the tips, an earlier ik run's columns) are
+replaced by the output's own. `ctr-cli fk` reads the output as a joint file. Floats
+are written in shortest round-trip form.
+
+Rows are a trajectory: each row starts from the joints of the row before (--cold: every
+row from the seed table, independently). To run in parallel the rows are cut into fixed
+chunks (--chunk-rows, default 32): the first row of every chunk is solved first, in
+order, each from the first row of the chunk before; then the chunks, in parallel, each
+row from the row before. The output depends on --chunk-rows, never on --threads. The
+rows on either side of a chunk boundary come from two warm-start paths: on a smooth
+trajectory both stay on one branch of solutions, but a redundant robot (more joints than
+target coordinates) can take a small step in its joints there that the tip does not
+show. For a trajectory to be played on the rig, --chunk-rows 0 warm-starts every row
+from the one before (one thread).
+
+Exit status: 0 success, also when targets were unreachable (see the status column and
+the warnings), unless --fail-unreachable: then 1 if any target was not reached (the
+output is still written); 2 bad input (nothing is written).";
+
 /// Batch kinematics of concentric tube robots, and the servo rig that drives them.
 #[derive(Debug, Parser)]
-#[command(name = "ctr-cli", version, after_help = FK_EXAMPLE)]
+#[command(name = "ctr-cli", version, after_help = MAIN_EXAMPLE)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]
@@ -29,6 +72,9 @@ pub enum Command {
     /// Forward kinematics: joint CSV in, tip CSV out.
     #[command(after_help = FK_EXAMPLE)]
     Fk(FkArgs),
+    /// Inverse kinematics: tip target CSV in, joint CSV out (within the robot's limits).
+    #[command(after_help = IK_HELP)]
+    Ik(IkArgs),
     /// The servo rig: Dynamixel 2.0 motors on a serial port, or an emulated bus.
     #[command(subcommand)]
     Hw(HwCommand),
@@ -318,6 +364,96 @@ pub struct FkArgs {
     /// Worker threads (default: all cores); the output does not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+}
+
+/// Options of `ctr-cli ik`.
+#[derive(Debug, clap::Args)]
+pub struct IkArgs {
+    /// Robot description (TOML); its [limits] bound the joints. `-` reads standard input.
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot: PathBuf,
+
+    /// Target file (CSV with x_mm,y_mm,z_mm and optionally qw,qx,qy,qz columns); `-`
+    /// reads standard input.
+    #[arg(long, value_name = "TARGETS.csv")]
+    pub targets: PathBuf,
+
+    /// Joint file to write (replaced only if the whole run succeeds); `-` or absent
+    /// writes standard output.
+    #[arg(short, long, value_name = "JOINTS.csv")]
+    pub output: Option<PathBuf>,
+
+    /// Exit with status 1 if any target was not reached (the output is still written).
+    #[arg(long)]
+    pub fail_unreachable: bool,
+
+    /// Solve every target cold from the seed table instead of warm from the row before
+    /// (for scattered targets).
+    #[arg(long)]
+    pub cold: bool,
+
+    /// Rows per chunk of the warm-started trajectory (see below); 0: one chunk, every
+    /// row warm-started from the row before, on one thread.
+    #[arg(long, value_name = "N", default_value_t = IK_CHUNK_ROWS)]
+    pub chunk_rows: usize,
+
+    /// Position targets only: qw,qx,qy,qz columns, if any, are carried through unread.
+    #[arg(long)]
+    pub position_only: bool,
+
+    /// Reached when the tip is this close to the target position, mm.
+    #[arg(long, value_name = "MM", default_value_t = IkOptions::default().tolerance_mm, value_parser = parse_positive)]
+    pub tolerance_mm: f64,
+
+    /// ... and, for a pose target, this close in orientation, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = 0.0057, value_parser = parse_positive)]
+    pub orientation_tolerance_deg: f64,
+
+    /// Weight W_E of the position error, per mm^2.
+    #[arg(long, value_name = "W", default_value_t = IkOptions::default().position_weight, value_parser = parse_positive)]
+    pub position_weight: f64,
+
+    /// Weight W_E of the orientation error, per rad^2 (100: 1 rad weighs as 10 mm).
+    #[arg(long, value_name = "W", default_value_t = IkOptions::default().orientation_weight, value_parser = parse_non_negative)]
+    pub orientation_weight: f64,
+
+    /// Damping W_N on each feed (mm^2 of tip error per mm^2 of feed step).
+    #[arg(long, value_name = "W", default_value_t = IkOptions::default().damping_feed, value_parser = parse_positive)]
+    pub damping_feed: f64,
+
+    /// Damping W_N on each rotation (mm^2 of tip error per rad^2 of rotation step).
+    #[arg(long, value_name = "W", default_value_t = IkOptions::default().damping_rotation, value_parser = parse_positive)]
+    pub damping_rotation: f64,
+
+    /// Further starts from the seed table when a start does not reach the target.
+    #[arg(long, value_name = "N", default_value_t = IkOptions::default().restarts)]
+    pub restarts: u32,
+
+    /// Most Levenberg-Marquardt steps per start.
+    #[arg(long, value_name = "N", default_value_t = IkOptions::default().max_iterations, value_parser = clap::value_parser!(u32).range(1..))]
+    pub max_iterations: u32,
+
+    /// Mechanics; overrides `kind` in the robot file's `[model]` (default torsion).
+    #[arg(long, value_enum)]
+    pub model: Option<ModelArg>,
+
+    /// Worker threads (default: all cores); the output does not depend on it.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+}
+
+fn parse_positive(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("{s:?} is not a positive number")),
+    }
+}
+
+fn parse_non_negative(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err(format!("{s:?} is not a number >= 0")),
+    }
 }
 
 /// `--model`.

@@ -1,19 +1,21 @@
 //! `ctr-cli`: batch kinematics of concentric tube robots, and the servo rig ([`hw`]).
 //!
 //! `main` parses the options ([`cli`]), runs the command and maps the outcome to an exit
-//! status: 0 success, 1 solves that did not converge under `--on-error fail` or a rig,
-//! bus or port failure, 2 bad input or usage. Every error is one line on stderr.
+//! status: 0 success, 1 solves that did not converge under `--on-error fail`, targets
+//! not reached under `ik --fail-unreachable`, or a rig, bus or port failure, 2 bad input
+//! or usage. Every error is one line on stderr.
 
 mod cli;
 mod hw;
 mod progress;
 
 use clap::Parser;
-use cli::{Cli, Command, FkArgs, ModelArg, OnErrorArg};
-use ctr_analysis::job::{run_fk, FkJob, Input, OnError, Output};
+use cli::{Cli, Command, FkArgs, IkArgs, ModelArg, OnErrorArg};
+use ctr_analysis::ik::IkOptions;
+use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, OnError, Output};
 use ctr_analysis::status_name;
 use ctr_core::Model;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Rows listed one by one on stderr before the rest are summed up.
@@ -79,6 +81,7 @@ fn usage_error(e: clap::Error) -> ExitCode {
 fn run(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Fk(args) => fk(args),
+        Command::Ik(args) => ik(args),
         Command::Hw(command) => hw::run(command),
     }
 }
@@ -91,6 +94,87 @@ fn input(path: &Path) -> Input {
     }
 }
 
+fn output(path: Option<PathBuf>) -> Output {
+    match path {
+        Some(p) if p != Path::new("-") => Output::Path(p),
+        _ => Output::Stdout,
+    }
+}
+
+fn model(m: ModelArg) -> Model {
+    match m {
+        ModelArg::Rigid => Model::Rigid,
+        ModelArg::Torsion => Model::Torsion,
+    }
+}
+
+fn ik(args: IkArgs) -> Result<(), Failure> {
+    let robot = input(&args.robot);
+    let targets = input(&args.targets);
+    if robot == Input::Stdin && targets == Input::Stdin {
+        return Err(Failure::Input(
+            "--robot and --targets cannot both read standard input (-)".into(),
+        ));
+    }
+    let job = IkJob {
+        robot,
+        targets,
+        output: output(args.output),
+        model: args.model.map(model),
+        options: IkOptions {
+            position_weight: args.position_weight,
+            orientation_weight: args.orientation_weight,
+            damping_feed: args.damping_feed,
+            damping_rotation: args.damping_rotation,
+            tolerance_mm: args.tolerance_mm,
+            orientation_tolerance_rad: args.orientation_tolerance_deg.to_radians(),
+            max_iterations: args.max_iterations,
+            restarts: args.restarts,
+            ..IkOptions::default()
+        },
+        position_only: args.position_only,
+        warm: !args.cold,
+        chunk_rows: args.chunk_rows,
+        threads: args.threads.map_or(0, usize::from),
+    };
+    let summary =
+        run_ik(&job, &progress::Bar::default()).map_err(|e| Failure::Input(e.to_string()))?;
+    for f in summary.not_reached.iter().take(MAX_WARNINGS) {
+        let angle = f.orientation_residual_rad.map_or(String::new(), |a| {
+            format!(", orientation_residual_deg = {}", a.to_degrees())
+        });
+        eprintln!(
+            "warning: {}:{}: target {}: residual_mm = {}{angle}",
+            summary.targets_file,
+            f.line,
+            f.status.name(),
+            f.residual_mm,
+        );
+    }
+    let missed = summary.not_reached.len();
+    if missed > MAX_WARNINGS {
+        eprintln!(
+            "warning: {}: {} more targets not reached ({missed} of {} in all)",
+            summary.targets_file,
+            missed - MAX_WARNINGS,
+            summary.rows
+        );
+    }
+    if args.fail_unreachable && missed > 0 {
+        let first = &summary.not_reached[0];
+        return Err(Failure::Solver(format!(
+            "{}:{}: {missed} of {} target{} not reached (first: {}, residual_mm = {}); the output was written",
+            summary.targets_file,
+            first.line,
+            summary.rows,
+            if summary.rows == 1 { "" } else { "s" },
+            first.status.name(),
+            first.residual_mm
+        )));
+    }
+    Ok(())
+}
+
 fn fk(args: FkArgs) -> Result<(), Failure> {
     let robot = input(&args.robot);
     let joints = input(&args.joints);
@@ -99,18 +183,11 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
             "--robot and --joints cannot both read standard input (-)".into(),
         ));
     }
-    let output = match args.output {
-        Some(p) if p != Path::new("-") => Output::Path(p),
-        _ => Output::Stdout,
-    };
     let job = FkJob {
         robot,
         joints,
-        output,
-        model: args.model.map(|m| match m {
-            ModelArg::Rigid => Model::Rigid,
-            ModelArg::Torsion => Model::Torsion,
-        }),
+        output: output(args.output),
+        model: args.model.map(model),
         on_error: match args.on_error {
             OnErrorArg::Fail => OnError::Fail,
             OnErrorArg::Skip => OnError::Skip,

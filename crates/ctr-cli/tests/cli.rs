@@ -41,10 +41,12 @@ fn path_str(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// Every case under `tests/cli/bad/`: `robot.toml`, `joints.csv`, `expected.txt` (a stable
-/// part of the one-line message), optionally `args` (the whole argument list, one per
-/// line) or `extra-args` (appended to `fk --robot robot.toml --joints joints.csv -o OUT`).
-/// Runs in the case's directory; must exit 2 with one line on stderr and write nothing.
+/// Every case under `tests/cli/bad/`: `robot.toml`, `joints.csv` (`targets.csv` for the
+/// `ik-*` cases), `expected.txt` (a stable part of the one-line message), optionally
+/// `args` (the whole argument list, one per line) or `extra-args` (appended to
+/// `fk --robot robot.toml --joints joints.csv -o OUT`, or for `ik-*` cases to
+/// `ik --robot robot.toml --targets targets.csv -o OUT`). Runs in the case's directory;
+/// must exit 2 with one line on stderr and write nothing.
 #[test]
 fn bad_input_corpus_exits_2_with_one_line() {
     let root = repo("tests/cli/bad");
@@ -64,9 +66,17 @@ fn bad_input_corpus_exits_2_with_one_line() {
             let text = std::fs::read_to_string(case.join(file)).ok()?;
             Some(text.lines().map(str::to_owned).collect())
         };
-        let args: Vec<String> = match lines("args") {
-            Some(a) => a,
-            None => [
+        let command: &[&str] = if name.starts_with("ik-") {
+            &[
+                "ik",
+                "--robot",
+                "robot.toml",
+                "--targets",
+                "targets.csv",
+                "-o",
+            ]
+        } else {
+            &[
                 "fk",
                 "--robot",
                 "robot.toml",
@@ -74,11 +84,15 @@ fn bad_input_corpus_exits_2_with_one_line() {
                 "joints.csv",
                 "-o",
             ]
-            .iter()
-            .map(|s| s.to_string())
-            .chain([path_str(&out).to_owned()])
-            .chain(lines("extra-args").unwrap_or_default())
-            .collect(),
+        };
+        let args: Vec<String> = match lines("args") {
+            Some(a) => a,
+            None => command
+                .iter()
+                .map(|s| s.to_string())
+                .chain([path_str(&out).to_owned()])
+                .chain(lines("extra-args").unwrap_or_default())
+                .collect(),
         };
         let expected = std::fs::read_to_string(case.join("expected.txt")).unwrap();
         let expected = expected.trim();

@@ -1,5 +1,5 @@
-//! File formats: the robot TOML, the joint CSV, the tip CSV, the rig's recording CSV,
-//! atomic output.
+//! File formats: the robot TOML, the joint CSV, the tip CSV, the IK target and joint
+//! CSVs, the rig's recording CSV, atomic output.
 //!
 //! The contract is `shared/spec/formats.md`; everything it describes is read and written
 //! as it says. This module adds three optional sections to the robot TOML and columns to
@@ -107,6 +107,23 @@
 //! written in Rust's shortest round-trip form ([`format_float`]): parsing the text gives
 //! the computed `f64` back bit for bit.
 //!
+//! # Target CSV and IK joint CSV
+//!
+//! [`TargetTable`] reads the targets of inverse kinematics: the contract's tip file,
+//! [`TARGET_COLUMNS`] `x_mm,y_mm,z_mm` and optionally [`ORIENTATION_COLUMNS`]
+//! `qw,qx,qy,qz` (all four or none; a unit quaternion within
+//! [`QUATERNION_NORM_TOLERANCE`]), checked as the joint file is. The output
+//! ([`ik_output_columns`]) carries the input's other columns, replaces columns named
+//! like its own, and adds [`ik_columns`]: the joints, the tip reached, `residual_mm`
+//! (and `orientation_residual_deg` for poses) and `status`; it is a joint file that
+//! `ctr-cli fk` reads.
+//!
+//! Both input tables keep the file's bytes and point into them; rows without quotes are
+//! split here, rows with quotes are read by the csv crate, with exactly the csv crate's
+//! reading either way, and their numbers are parsed in parallel (the error reported is
+//! the first in the file). Output rows are formatted into byte buffers, floats with
+//! `ryu` laid out as Rust's `Display` writes them.
+//!
 //! # Recording CSV (written by `ctr-cli hw run`)
 //!
 //! [`RecordingWriter`] writes [`recording_header`]:
@@ -124,11 +141,14 @@
 //! point at the offending value.
 
 mod actuation;
+mod csvout;
 mod joints;
 mod output;
 mod recording;
 pub(crate) mod robot_file;
-mod tips;
+mod table;
+pub(crate) mod targets;
+pub(crate) mod tips;
 
 pub use actuation::{
     ActuatedJoint, ActuationSection, ActuatorKind, JointId, DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
@@ -139,5 +159,9 @@ pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{
     Effects, Gravity, LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile,
     TubeLimits,
+};
+pub use targets::{
+    ik_columns, ik_output_columns, IkOutputColumns, TargetTable, ORIENTATION_COLUMNS,
+    QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
 };
 pub use tips::{format_float, tip_header, TipWriter, STATUS_COLUMNS, TIP_COLUMNS};

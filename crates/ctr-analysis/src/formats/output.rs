@@ -56,7 +56,7 @@ impl AtomicFile {
         Ok(AtomicFile {
             path: path.to_path_buf(),
             file,
-            tmp: BufWriter::new(tmp),
+            tmp: BufWriter::with_capacity(1 << 20, tmp),
         })
     }
 

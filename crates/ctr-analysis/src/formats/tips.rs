@@ -1,5 +1,6 @@
 //! The tip CSV written by forward kinematics: the input's columns, then the tip pose.
 
+use super::csvout::{write_field, write_float, write_record};
 use crate::error::{status_name, ErrorKind};
 use crate::robot::FkResult;
 use std::io::Write;
@@ -48,21 +49,85 @@ pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, Er
 /// assert_eq!(ctr_analysis::formats::format_float(v).parse::<f64>().unwrap(), v);
 /// ```
 pub fn format_float(v: f64) -> String {
-    format!("{v}")
+    let mut out = Vec::with_capacity(24);
+    write_float(&mut out, v);
+    // write_float writes ASCII only
+    String::from_utf8(out).unwrap_or_default()
+}
+
+/// Appends the CSV header line `header` to `out`.
+pub(crate) fn write_header(out: &mut Vec<u8>, header: &[String]) {
+    write_record(out, header.iter().map(String::as_str));
+}
+
+/// The input columns of an output row.
+pub(crate) enum Carried<'a, I: Iterator<Item = &'a str>> {
+    /// Fields to write (quoted as needed).
+    Fields(I),
+    /// A line of fields already in CSV form (from `plain_line`).
+    Line(&'a str),
+}
+
+/// Writes the carried columns of a row, each followed by a comma.
+pub(crate) fn write_carried<'a, I: Iterator<Item = &'a str>>(
+    out: &mut Vec<u8>,
+    input: Carried<'a, I>,
+) {
+    match input {
+        Carried::Line(line) => {
+            out.extend_from_slice(line.as_bytes());
+            out.push(b',');
+        }
+        Carried::Fields(fields) => {
+            for f in fields {
+                write_field(out, f);
+                out.push(b',');
+            }
+        }
+    }
+}
+
+/// Appends one tip row to `out`: the input's raw fields, then the pose (and, with
+/// `with_status`, status and residual).
+pub(crate) fn write_tip_row<'a, I: Iterator<Item = &'a str>>(
+    out: &mut Vec<u8>,
+    input: Carried<'a, I>,
+    fk: &FkResult,
+    with_status: bool,
+) {
+    write_carried(out, input);
+    for (k, v) in fk.position.iter().chain(fk.quaternion.iter()).enumerate() {
+        if k > 0 {
+            out.push(b',');
+        }
+        write_float(out, *v);
+    }
+    if with_status {
+        out.push(b',');
+        out.extend_from_slice(status_name(fk.status).as_bytes());
+        out.push(b',');
+        write_float(out, fk.residual_per_mm);
+    }
+    out.push(b'\n');
 }
 
 /// Writes tip rows as CSV.
 pub struct TipWriter<W: Write> {
-    csv: csv::Writer<W>,
+    out: W,
+    buf: Vec<u8>,
     with_status: bool,
 }
 
 impl<W: Write> TipWriter<W> {
     /// Writes `header` (from [`tip_header`]); `with_status` must match it.
     pub fn new(out: W, header: &[String], with_status: bool) -> Result<Self, ErrorKind> {
-        let mut csv = csv::WriterBuilder::new().flexible(false).from_writer(out);
-        csv.write_record(header).map_err(write_error)?;
-        Ok(TipWriter { csv, with_status })
+        let mut w = TipWriter {
+            out,
+            buf: Vec::with_capacity(1 << 16),
+            with_status,
+        };
+        write_header(&mut w.buf, header);
+        Ok(w)
     }
 
     /// Writes one row: the input's raw fields, then the pose (and status, residual).
@@ -71,41 +136,28 @@ impl<W: Write> TipWriter<W> {
         input_fields: impl IntoIterator<Item = &'a str>,
         fk: &FkResult,
     ) -> Result<(), ErrorKind> {
-        for f in input_fields {
-            self.csv.write_field(f).map_err(write_error)?;
+        let fields = Carried::Fields(input_fields.into_iter());
+        write_tip_row(&mut self.buf, fields, fk, self.with_status);
+        if self.buf.len() >= 1 << 16 {
+            self.out.write_all(&self.buf).map_err(write_error)?;
+            self.buf.clear();
         }
-        for v in fk.position.iter().chain(fk.quaternion.iter()) {
-            self.csv
-                .write_field(format_float(*v))
-                .map_err(write_error)?;
-        }
-        if self.with_status {
-            self.csv
-                .write_field(status_name(fk.status))
-                .map_err(write_error)?;
-            self.csv
-                .write_field(format_float(fk.residual_per_mm))
-                .map_err(write_error)?;
-        }
-        self.csv.write_record(None::<&[u8]>).map_err(write_error)
+        Ok(())
     }
 
     /// Flushes and returns the underlying writer.
-    pub fn finish(self) -> Result<W, ErrorKind> {
-        self.csv.into_inner().map_err(|e| ErrorKind::Io {
-            action: "write",
-            source: e.into_error(),
-        })
+    pub fn finish(mut self) -> Result<W, ErrorKind> {
+        self.out
+            .write_all(&self.buf)
+            .and_then(|()| self.out.flush())
+            .map_err(write_error)?;
+        Ok(self.out)
     }
 }
 
-fn write_error(e: csv::Error) -> ErrorKind {
-    let message = e.to_string();
-    match e.into_kind() {
-        csv::ErrorKind::Io(source) => ErrorKind::Io {
-            action: "write",
-            source,
-        },
-        _ => ErrorKind::Csv { message },
+pub(crate) fn write_error(source: std::io::Error) -> ErrorKind {
+    ErrorKind::Io {
+        action: "write",
+        source,
     }
 }

@@ -1,0 +1,271 @@
+//! The IK target CSV: one tip target per row, header `x_mm,y_mm,z_mm` and optionally
+//! `qw,qx,qy,qz` (a pose target), as the contract's tip file (so the output of
+//! `ctr-cli fk` is a target file); and the joint CSV that `ctr-cli ik` writes, with the
+//! other columns carried through as the raw strings they were.
+
+use super::csvout::write_float;
+use super::table::{read_all, read_path, Columns, Table};
+use super::tips::{write_carried, Carried};
+use crate::error::{Error, ErrorKind, Location};
+use crate::ik::{IkResult, IkTarget};
+use crate::robot::{canonical_quaternion, joint_columns};
+use nalgebra::{Quaternion, UnitQuaternion};
+use std::io::Read;
+use std::path::Path;
+
+/// The target position columns, mm in W.
+pub const TARGET_COLUMNS: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
+
+/// The optional target orientation columns: a unit quaternion `w, x, y, z` (either
+/// sign) of the tip frame in W.
+pub const ORIENTATION_COLUMNS: [&str; 4] = ["qw", "qx", "qy", "qz"];
+
+/// How far from 1 a target quaternion's norm may be (it is then normalised).
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
+/// An IK target file read and checked: every row has a finite position and, when the
+/// file has the orientation columns, a unit quaternion. The raw fields of every row are
+/// kept for carrying through.
+#[derive(Clone, Debug)]
+pub struct TargetTable {
+    table: Table,
+}
+
+impl TargetTable {
+    /// Reads CSV from `reader`; `file` names it in errors. With `position_only`, the
+    /// orientation columns, if any, are not read (position targets).
+    ///
+    /// ```
+    /// use ctr_analysis::formats::TargetTable;
+    /// let csv = "label,x_mm,y_mm,z_mm\na,1,2,90\nb,1,2,nan\n";
+    /// let err = TargetTable::read(csv.as_bytes(), "t.csv", false).unwrap_err();
+    /// assert_eq!(err.to_string(), "t.csv:3: column z_mm: \"nan\" is not a finite number");
+    /// ```
+    pub fn read<R: Read>(reader: R, file: &str, position_only: bool) -> Result<Self, Error> {
+        let data = read_all(reader, file)?;
+        TargetTable::from_bytes(data, file, position_only, 1)
+    }
+
+    /// Reads CSV from a whole file's bytes; the numbers are parsed and checked on
+    /// `threads` threads (0 = all cores), the error reported being the first in the file.
+    pub fn from_bytes(
+        data: Vec<u8>,
+        file: &str,
+        position_only: bool,
+        threads: usize,
+    ) -> Result<Self, Error> {
+        let required: Vec<String> = TARGET_COLUMNS.iter().map(|s| (*s).to_owned()).collect();
+        let orientation: Vec<String> = ORIENTATION_COLUMNS
+            .iter()
+            .map(|s| (*s).to_owned())
+            .collect();
+        let columns = Columns {
+            required: &required,
+            optional: (!position_only).then_some((&orientation[..], "an orientation target")),
+        };
+        let row_check = |v: &[f64], line: usize| {
+            if v.len() == 7 {
+                let q = [v[3], v[4], v[5], v[6]];
+                let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+                if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                    return Err(Error::new(
+                        Location::line(file, line),
+                        ErrorKind::NotUnitQuaternion { q, norm },
+                    ));
+                }
+            }
+            Ok(())
+        };
+        let table = Table::read(data, file, &columns, |_| Ok(()), row_check, threads)?;
+        Ok(TargetTable { table })
+    }
+
+    /// Reads a target file; errors name the path as given.
+    pub fn from_path(path: &Path, position_only: bool) -> Result<Self, Error> {
+        let (file, data) = read_path(path)?;
+        TargetTable::from_bytes(data, &file, position_only, 1)
+    }
+
+    /// The file name used in errors.
+    pub fn file(&self) -> &str {
+        &self.table.file
+    }
+
+    /// The header as found (untrimmed).
+    pub fn header(&self) -> &[String] {
+        &self.table.header
+    }
+
+    /// True when the targets are poses (the file has `qw,qx,qy,qz` and they are read).
+    pub fn has_orientation(&self) -> bool {
+        self.table.has_optional
+    }
+
+    /// Number of data rows.
+    pub fn len(&self) -> usize {
+        self.table.len()
+    }
+
+    /// True when the file has a header only.
+    pub fn is_empty(&self) -> bool {
+        self.table.len() == 0
+    }
+
+    /// The 1-based file line where data row `row` (0-based) starts.
+    pub fn line(&self, row: usize) -> usize {
+        self.table.line(row)
+    }
+
+    /// The raw fields of data row `row`, all columns in header order.
+    pub fn fields(&self, row: usize) -> impl Iterator<Item = &str> {
+        self.table.fields(row)
+    }
+
+    /// The target of data row `row` (its quaternion normalised).
+    pub fn target(&self, row: usize) -> IkTarget {
+        let v = self.table.values(row);
+        let p = [v[0], v[1], v[2]];
+        if v.len() == 7 {
+            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
+            IkTarget::pose(p, UnitQuaternion::from_quaternion(q))
+        } else {
+            IkTarget::position(p)
+        }
+    }
+
+    /// All targets, in row order.
+    pub fn targets(&self) -> Vec<IkTarget> {
+        (0..self.len()).map(|r| self.target(r)).collect()
+    }
+
+    /// Row `row`'s fields at the indices `keep` (increasing).
+    pub(crate) fn carried<'a>(
+        &'a self,
+        row: usize,
+        keep: &'a [usize],
+    ) -> Carried<'a, impl Iterator<Item = &'a str>> {
+        let mut next = 0;
+        Carried::Fields(
+            self.table
+                .fields(row)
+                .enumerate()
+                .filter_map(move |(i, f)| {
+                    if keep.get(next) == Some(&i) {
+                        next += 1;
+                        Some(f)
+                    } else {
+                        None
+                    }
+                }),
+        )
+    }
+}
+
+/// The columns `ctr-cli ik` adds after the input's: the joints (file units), the tip
+/// reached, the distance to the target, the status. Pose targets add the orientation
+/// reached and its angle to the target:
+///
+/// `s1_mm,theta1_deg,...,reached_x_mm,reached_y_mm,reached_z_mm[,reached_qw,reached_qx,
+/// reached_qy,reached_qz],residual_mm[,orientation_residual_deg],status`
+///
+/// ```
+/// let c = ctr_analysis::formats::ik_columns(2, false);
+/// assert_eq!(c.join(","), "s1_mm,theta1_deg,s2_mm,theta2_deg,reached_x_mm,reached_y_mm,reached_z_mm,residual_mm,status");
+/// ```
+pub fn ik_columns(n_tubes: usize, pose: bool) -> Vec<String> {
+    let mut c = joint_columns(n_tubes);
+    c.extend(["reached_x_mm", "reached_y_mm", "reached_z_mm"].map(String::from));
+    if pose {
+        c.extend(["reached_qw", "reached_qx", "reached_qy", "reached_qz"].map(String::from));
+    }
+    c.push("residual_mm".into());
+    if pose {
+        c.push("orientation_residual_deg".into());
+    }
+    c.push("status".into());
+    c
+}
+
+/// Which input columns an IK output carries, and its header.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct IkOutputColumns {
+    /// Indices of the input columns carried, in order.
+    pub carried: Vec<usize>,
+    /// The output header: the carried columns (as found), then [`ik_columns`].
+    pub header: Vec<String>,
+}
+
+/// The IK output's columns for a target file with header `input`: every input column
+/// is carried through except the targets themselves (`x_mm,y_mm,z_mm` and
+/// `qw,qx,qy,qz`) and columns named like one the output adds (the joints of the `fk`
+/// run that made the tips, or the columns of an earlier `ik` run), which the output's
+/// own replace. So a tip file from `ctr-cli fk` is a target file, and `ctr-cli fk`
+/// reads the output.
+///
+/// ```
+/// use ctr_analysis::formats::ik_output_columns;
+/// let input: Vec<String> = "label,s1_mm,theta1_deg,x_mm,y_mm,z_mm,qw,qx,qy,qz"
+///     .split(',').map(String::from).collect();
+/// let c = ik_output_columns(&input, 1, false);
+/// assert_eq!(c.carried, [0]);
+/// assert_eq!(c.header.join(","), "label,s1_mm,theta1_deg,reached_x_mm,reached_y_mm,reached_z_mm,residual_mm,status");
+/// ```
+pub fn ik_output_columns(input: &[String], n_tubes: usize, pose: bool) -> IkOutputColumns {
+    let added = ik_columns(n_tubes, pose);
+    let consumed = |name: &str| {
+        TARGET_COLUMNS.contains(&name)
+            || ORIENTATION_COLUMNS.contains(&name)
+            || added.iter().any(|a| a == name)
+    };
+    let carried: Vec<usize> = (0..input.len())
+        .filter(|&i| !consumed(input[i].trim()))
+        .collect();
+    let header = carried
+        .iter()
+        .map(|&i| input[i].clone())
+        .chain(added)
+        .collect();
+    IkOutputColumns { carried, header }
+}
+
+/// Appends one IK output row: the carried input, the joints in file units
+/// (`joints_file`: mm, degrees), then the tip reached and the residuals of `r`.
+pub(crate) fn write_ik_row<'a, I: Iterator<Item = &'a str>>(
+    out: &mut Vec<u8>,
+    input: Carried<'a, I>,
+    joints_file: &[f64],
+    r: &IkResult,
+    pose: bool,
+) {
+    write_carried(out, input);
+    for v in joints_file {
+        write_float(out, *v);
+        out.push(b',');
+    }
+    for v in r.tip.position.iter() {
+        write_float(out, *v);
+        out.push(b',');
+    }
+    if pose {
+        let q = if r.tip.rotation.iter().all(|v| v.is_finite()) {
+            canonical_quaternion(&r.tip.orientation())
+        } else {
+            [f64::NAN; 4]
+        };
+        for v in q {
+            write_float(out, v);
+            out.push(b',');
+        }
+    }
+    write_float(out, r.residual_mm);
+    out.push(b',');
+    if pose {
+        write_float(
+            out,
+            r.orientation_residual_rad.unwrap_or(f64::NAN).to_degrees(),
+        );
+        out.push(b',');
+    }
+    out.extend_from_slice(r.status.name().as_bytes());
+    out.push(b'\n');
+}
