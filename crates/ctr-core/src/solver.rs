@@ -333,7 +333,21 @@ impl<T: Real, const N: usize> Solver<T, N> {
             Model::Torsion => {
                 let guess = self.guess(q);
                 let cold = self.warm.count == 0;
-                let sol = self.shoot(robot, q, &sections, guess, cold, clearance, &mut sink);
+                let mut sol = self.shoot(robot, q, &sections, guess, cold, clearance, &mut sink);
+                if sol.status != Status::Converged && !cold {
+                    // a warm start from far away can land in another basin: retry cold
+                    let iterations = sol.iterations;
+                    sol = self.shoot(
+                        robot,
+                        q,
+                        &sections,
+                        [T::zero(); N],
+                        true,
+                        clearance,
+                        &mut sink,
+                    );
+                    sol.iterations += iterations;
+                }
                 if sol.status == Status::Converged {
                     self.remember(q, &sol.base_twist_per_mm);
                 }
@@ -394,7 +408,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         let mut best = (x, huge);
         let mut prev_norm = huge;
         let mut last_step = [T::zero(); N];
-        let mut margin = T::one();
+        let mut last_jac = [[T::zero(); N]; N];
         let mut damping = T::one();
         let mut diverged = false;
         loop {
@@ -420,7 +434,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 }
                 prev_norm = norm;
                 damping = T::one();
-                margin = smallest_singular_value(&jac, m);
+                last_jac = jac;
                 let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
                     diverged = true;
                     break;
@@ -451,7 +465,11 @@ impl<T: Real, const N: usize> Solver<T, N> {
             sink.needed = 0;
             let mut sol = pose_pass(robot, q, sections, &x, clearance, sink);
             sol.iterations = iterations;
-            sol.stability_margin = margin;
+            sol.stability_margin = if m > 0 && iterations > 0 {
+                smallest_singular_value(&last_jac, m)
+            } else {
+                T::one()
+            };
             let r = sol.residual_per_mm;
             let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
             sol.status = if diverged || !finite {
@@ -716,6 +734,23 @@ pub(crate) fn extrapolation<T: Real, const N: usize>(
 /// Smallest singular value of the leading `m x m` block (m <= 3), from the eigenvalues
 /// of `J^T J`, signed with `det J`; unused dimensions are padded so they never count.
 fn smallest_singular_value<T: Real, const N: usize>(jac: &[[T; N]; N], m: usize) -> T {
+    if m == 1 {
+        return jac[0][0];
+    }
+    if m == 2 {
+        // closed form for 2x2: sigma_min = |det| / sigma_max, sigma_max^2 the larger
+        // eigenvalue of J^T J
+        let (a, b, cc, d) = (jac[0][0], jac[0][1], jac[1][0], jac[1][1]);
+        let det = a * d - b * cc;
+        let fro = a * a + b * b + cc * cc + d * d;
+        let disc = (fro * fro - det * det * c(4.0)).max(T::zero()).sqrt();
+        let smax = ((fro + disc) * c(0.5)).sqrt();
+        return if smax > T::zero() {
+            det / smax
+        } else {
+            T::zero()
+        };
+    }
     const PAD: f64 = 1e30;
     let mut a = nalgebra::Matrix3::<T>::from_diagonal_element(c(PAD));
     for i in 0..m.min(3) {
