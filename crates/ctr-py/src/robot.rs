@@ -8,9 +8,11 @@
 use crate::arrays::{self, Rows};
 use crate::errors::{self, Fail};
 use crate::parallel;
-use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
+use ctr_analysis::batch::{
+    batch_fk, batch_ik, BatchOptions, IkBatchOptions, IK_CHUNK_ROWS, WARM_CHUNK_ROWS,
+};
 use ctr_analysis::formats::RobotSpec;
-use ctr_analysis::ik::{Ik, IkOptions, IkTarget};
+use ctr_analysis::ik::{Ik, IkError, IkOptions, IkTarget};
 use ctr_analysis::{status_name, AnyRobot, Error, ErrorKind, Location};
 use ctr_core::{JointError, Joints, Model, Robot as CoreRobot, Solver, Status};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -22,6 +24,8 @@ use std::sync::OnceLock;
 
 /// Names of the target columns, as in a targets file.
 const TARGET_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"];
+/// `ctr-cli ik --orientation-tolerance-deg`'s default.
+const CLI_ORIENTATION_TOLERANCE_DEG: f64 = 0.0057;
 /// Most worker threads a call may ask for (each is an OS thread).
 const MAX_THREADS: usize = 1024;
 /// How far from 1 a target quaternion's norm may be (it is then normalised).
@@ -33,10 +37,19 @@ pub struct Robot {
     spec: RobotSpec,
     /// The file name errors give (the path as given, or the name passed with the text).
     source: String,
-    /// IK solvers within the file's limits, built on first use: rigid, torsion.
+    /// IK solvers with `ctr-cli ik`'s default settings, within the file's limits, built
+    /// on first use: rigid, torsion.
     ik: [OnceLock<Result<Ik, String>>; 2],
     /// Jacobian solvers within the core's joint ranges (no start table): rigid, torsion.
     jacobian: [OnceLock<Result<Ik, String>>; 2],
+}
+
+/// The IK settings `ctr-cli ik` uses by default.
+fn cli_ik_options() -> IkOptions {
+    IkOptions {
+        orientation_tolerance_rad: CLI_ORIENTATION_TOLERANCE_DEG.to_radians(),
+        ..IkOptions::default()
+    }
 }
 
 /// `threads` checked: 0 (all cores) to [`MAX_THREADS`].
@@ -168,8 +181,24 @@ impl Robot {
         Ok(())
     }
 
-    /// The IK solver of `model` (within the file's limits), or the Jacobian's (within
-    /// the core's ranges only, no start table), built on first use.
+    /// An IK solver of `model` within the file's limits, or the message of why not.
+    fn build_ik(&self, model: Model, options: IkOptions) -> Result<Ik, String> {
+        Ik::new(
+            &self.spec.robot,
+            model,
+            self.spec.limits.as_deref(),
+            options,
+        )
+        .map_err(|e| match e {
+            // located at the robot file, as `ctr-cli ik` does
+            IkError::Limits(_) => format!("{}: {e}", self.source),
+            _ => e.to_string(),
+        })
+    }
+
+    /// The IK solver of `model` with `ctr-cli ik`'s default settings (within the
+    /// file's limits), or the Jacobian's (within the core's ranges only, no start
+    /// table), built on first use.
     fn solver(&self, model: Model, for_jacobian: bool) -> Result<&Ik, Fail> {
         let slots = if for_jacobian {
             &self.jacobian
@@ -178,21 +207,15 @@ impl Robot {
         };
         slots[model_index(model)]
             .get_or_init(|| {
-                let built = if for_jacobian {
+                if for_jacobian {
                     let options = IkOptions {
                         seed_samples: 0,
                         ..IkOptions::default()
                     };
-                    Ik::new(&self.spec.robot, model, None, options)
+                    Ik::new(&self.spec.robot, model, None, options).map_err(|e| e.to_string())
                 } else {
-                    Ik::new(
-                        &self.spec.robot,
-                        model,
-                        self.spec.limits.as_deref(),
-                        IkOptions::default(),
-                    )
-                };
-                built.map_err(|e| format!("{}: {e}", self.source))
+                    self.build_ik(model, cli_ik_options())
+                }
             })
             .as_ref()
             .map_err(|m| Fail::Input(m.clone()))
@@ -524,18 +547,57 @@ impl Robot {
     }
 
     /// Inverse kinematics; see `_ctr.pyi`.
-    #[pyo3(signature = (targets, q0 = None, *, model = None, trajectory = false, threads = 0))]
+    #[pyo3(signature = (
+        targets,
+        q0 = None,
+        *,
+        model = None,
+        cold = false,
+        chunk_rows = IK_CHUNK_ROWS,
+        tolerance_mm = IkOptions::default().tolerance_mm,
+        orientation_tolerance_deg = CLI_ORIENTATION_TOLERANCE_DEG,
+        position_weight = IkOptions::default().position_weight,
+        orientation_weight = IkOptions::default().orientation_weight,
+        damping_feed = IkOptions::default().damping_feed,
+        damping_rotation = IkOptions::default().damping_rotation,
+        restarts = IkOptions::default().restarts,
+        max_iterations = IkOptions::default().max_iterations,
+        threads = 0,
+    ))]
     fn ik<'py>(
         &self,
         py: Python<'py>,
         targets: &Bound<'py, PyAny>,
         q0: Option<&Bound<'py, PyAny>>,
         model: Option<&str>,
-        trajectory: bool,
+        cold: bool,
+        chunk_rows: usize,
+        tolerance_mm: f64,
+        orientation_tolerance_deg: f64,
+        position_weight: f64,
+        orientation_weight: f64,
+        damping_feed: f64,
+        damping_rotation: f64,
+        restarts: u32,
+        max_iterations: u32,
         threads: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
         let threads = threads_arg(threads)?;
+        if max_iterations == 0 {
+            return Err(errors::input("max_iterations: 0 must be >= 1".into()));
+        }
+        let options = IkOptions {
+            position_weight,
+            orientation_weight,
+            damping_feed,
+            damping_rotation,
+            tolerance_mm,
+            orientation_tolerance_rad: orientation_tolerance_deg.to_radians(),
+            max_iterations,
+            restarts,
+            ..IkOptions::default()
+        };
         let t = arrays::read_rows(
             targets,
             "targets",
@@ -544,13 +606,13 @@ impl Robot {
         )?;
         let q0 = q0.map(|o| self.read_joints(o, "q0")).transpose()?;
         if let Some(q0) = &q0 {
-            if q0.batched && trajectory {
+            if q0.batched && !cold {
                 return Err(errors::input(format!(
-                    "q0: a trajectory starts from one joint vector of shape ({},), not a batch",
+                    "q0: one start per target needs cold=True (independent targets); a warm trajectory starts from one joint vector of shape ({},)",
                     q0.width
                 )));
             }
-            if q0.batched && (!t.batched || q0.rows != t.rows) {
+            if q0.batched && q0.rows != t.rows {
                 return Err(errors::input(format!(
                     "q0: {} rows for {} target{} (give one start, or one per target)",
                     q0.rows,
@@ -563,27 +625,51 @@ impl Robot {
         let (q, residuals, statuses) = py
             .detach(|| -> Result<_, Fail> {
                 let targets = Robot::targets(&t)?;
-                let starts: Option<Vec<Vec<f64>>> = match &q0 {
-                    None => None,
-                    Some(rows) => {
-                        self.check_joints(rows, "q0")?;
-                        Some((0..rows.rows).map(|i| rows.row(i).to_vec()).collect())
-                    }
-                };
-                let ik = self.solver(model, false)?;
-                let start = |i: usize| -> Option<Vec<f64>> {
-                    let s = starts.as_ref()?;
-                    Some(ik.from_file_units(&s[i.min(s.len() - 1)]))
-                };
-                let results = if trajectory {
-                    ik.clone().solve_trajectory(&targets, start(0).as_deref())
+                if let Some(rows) = &q0 {
+                    self.check_joints(rows, "q0")?;
+                }
+                let built;
+                let ik = if options == cli_ik_options() {
+                    self.solver(model, false)?
                 } else {
-                    parallel::map(
-                        targets.len(),
-                        threads,
-                        || ik.clone(),
-                        |ik, i| ik.solve(&targets[i], start(i).as_deref()),
-                    )
+                    built = self.build_ik(model, options).map_err(Fail::Input)?;
+                    &built
+                };
+                let results = match &q0 {
+                    // the CLI's modes: warm along the rows in chunks, or cold
+                    None => {
+                        let batch = IkBatchOptions {
+                            threads,
+                            chunk_rows: if chunk_rows == 0 {
+                                targets.len().max(1)
+                            } else {
+                                chunk_rows
+                            },
+                            warm: !cold,
+                        };
+                        let mut all = Vec::with_capacity(targets.len());
+                        batch_ik(ik, &targets, &batch, &(), |_, r| {
+                            all.extend(r);
+                            true
+                        });
+                        all
+                    }
+                    // a trajectory from a known start: one chain, in order
+                    Some(start) if !cold => ik
+                        .clone()
+                        .solve_trajectory(&targets, Some(&ik.from_file_units(start.row(0)))),
+                    // independent targets, each from its start
+                    Some(start) => {
+                        let starts: Vec<Vec<f64>> = (0..start.rows)
+                            .map(|i| ik.from_file_units(start.row(i)))
+                            .collect();
+                        parallel::map(
+                            targets.len(),
+                            threads,
+                            || ik.clone(),
+                            |ik, i| ik.solve(&targets[i], Some(&starts[i.min(starts.len() - 1)])),
+                        )
+                    }
                 };
                 let mut q = Vec::with_capacity(n * results.len());
                 let mut residuals = Vec::with_capacity(results.len());

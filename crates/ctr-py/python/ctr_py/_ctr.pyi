@@ -156,7 +156,16 @@ class Robot:
         q0: Optional[ArrayLike] = None,
         *,
         model: Optional[Model] = None,
-        trajectory: bool = False,
+        cold: bool = False,
+        chunk_rows: int = 32,
+        tolerance_mm: float = 1e-4,
+        orientation_tolerance_deg: float = 0.0057,
+        position_weight: float = 1.0,
+        orientation_weight: float = 100.0,
+        damping_feed: float = 1e-6,
+        damping_rotation: float = 1e-4,
+        restarts: int = 8,
+        max_iterations: int = 100,
         threads: int = 0,
     ) -> Tuple[F64, Union[F64, float], Union[npt.NDArray[np.str_], str]]:
         """Inverse kinematics: ``q, residual_mm, status = robot.ik(targets)``.
@@ -166,18 +175,28 @@ class Robot:
         ``qw, qx, qy, qz``: a unit quaternion within 1e-3, then normalised, as
         ``ctr-cli ik`` reads a targets file). The solver is the library's damped
         Levenberg-Marquardt with joint limits (the core's ranges and the robot file's
-        ``[limits]``) held exactly at every step.
+        ``[limits]``) held exactly at every step. The keyword settings are
+        ``ctr-cli ik``'s options of the same names, with the same defaults.
 
-        Starts: without ``q0`` each target is solved cold (from a seeded table of
-        start points, with restarts); with ``q0`` of shape ``(2n,)`` every target
-        starts there, with ``(m, 2n)`` each from its own row. These solves are
-        independent and run in parallel. With ``trajectory=True`` the targets are solved
-        in order, each warm-started from the previous result (the first from ``q0``, or
-        cold): the way to follow a path.
+        Without ``q0`` the results are those ``ctr-cli ik`` writes for the same targets
+        and settings, to the last bit:
+
+        - by default the targets are a trajectory: each row starts from the previous
+          row's result, in chunks of ``chunk_rows`` rows whose first rows are solved in
+          order first (so chunks run in parallel and the results never depend on
+          ``threads``); ``chunk_rows=0`` makes one chain on one thread;
+        - ``cold=True``: every target is solved on its own from a seeded table of start
+          points (scattered targets), in parallel.
+
+        With ``q0`` (this has no CLI counterpart): of shape ``(2n,)``, the trajectory
+        starts there and is solved as one chain, in order (``chunk_rows`` is not used);
+        with ``cold=True`` every target starts from ``q0``, or of shape ``(m, 2n)``
+        each from its own row, independently and in parallel.
 
         Returns joints ``(2n,)`` / ``(m, 2n)`` in file units, inside the limits; the
         distance from the tip to the target position in mm; and the status:
-        ``"reached"`` (within 1e-4 mm, and 1e-4 rad for a pose), ``"unreachable"``
-        (the closest point found, for a target outside the workspace),
-        ``"iteration_limit"`` or ``"fk_failed"``. An unreachable target is not an error.
+        ``"reached"`` (within ``tolerance_mm``, and ``orientation_tolerance_deg`` for a
+        pose), ``"unreachable"`` (the closest point found, for a target outside the
+        workspace), ``"iteration_limit"`` or ``"fk_failed"``. An unreachable target is
+        not an error.
         """
