@@ -11,9 +11,9 @@ Not a test: nothing is asserted.
 
 Measured (2026-11, the 2-core development VM, another build running beside it at
 times; wheel built by `pip install ./crates/ctr-py`, release):
-    path,   threads=2: best 0.65 s (1.5 M rows/s); 0.77 s with the other build running
-    path,   threads=1: 1.31 s
-    random, threads=2: 1.54 s (cold-like solves, 4 rows not converged)
+    path,   threads=2: best 0.65 s (1.5 M rows/s); 0.77 s with another build running
+    path,   threads=1: 1.13 s
+    random, threads=2: 1.48 s (cold-like solves; the core's cost, not the wheel's)
 """
 
 import argparse
