@@ -3,39 +3,12 @@
 
 use ctr_analysis::batch::WARM_CHUNK_ROWS;
 use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
-use std::io::Write;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Stdio;
 
-fn repo(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(rel)
-}
-
-fn cli() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ctr-cli"))
-}
-
-fn run(args: &[&str]) -> Output {
-    cli().args(args).output().unwrap()
-}
-
-fn run_stdin(args: &[&str], input: &[u8]) -> Output {
-    let mut child = cli()
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(input).unwrap();
-    child.wait_with_output().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{cli, repo, run, run_stdin, stderr};
 
 fn path_str(p: &Path) -> &str {
     p.to_str().unwrap()

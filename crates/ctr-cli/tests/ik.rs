@@ -7,42 +7,15 @@
 //! (`cargo test --release -p ctr-cli --test ik` runs them all, about a second).
 
 use ctr_analysis::formats::{RobotSpec, TubeLimits};
-use std::io::Write;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
+
+mod common;
+use common::{cli, repo, run, run_stdin, stderr};
 
 /// Random reachable targets per robot (the 1,000 in release builds).
 const ROUND_TRIPS: usize = if cfg!(debug_assertions) { 150 } else { 1000 };
-
-fn repo(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(rel)
-}
-
-fn cli() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ctr-cli"))
-}
-
-fn run(args: &[&str]) -> Output {
-    cli().args(args).output().unwrap()
-}
-
-fn run_stdin(args: &[&str], input: &[u8]) -> Output {
-    let mut child = cli()
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(input).unwrap();
-    child.wait_with_output().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn p(path: &Path) -> &str {
     path.to_str().unwrap()
