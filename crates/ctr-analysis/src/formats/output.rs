@@ -15,26 +15,34 @@ pub struct AtomicFile {
     tmp: BufWriter<NamedTempFile>,
 }
 
+/// The directory an output file at `path` goes into, after checking that it exists and
+/// that `path` is not a directory itself.
+pub(crate) fn output_dir(path: &Path) -> Result<PathBuf, Error> {
+    let fail = |kind| Error::new(Location::file(path.display().to_string()), kind);
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(fail(ErrorKind::OutputDirectory {
+            dir: dir.display().to_string(),
+        }));
+    }
+    if path.is_dir() {
+        return Err(fail(ErrorKind::Io {
+            action: "write",
+            source: io::Error::other("it is a directory"),
+        }));
+    }
+    Ok(dir)
+}
+
 impl AtomicFile {
     /// Creates the temporary file in `path`'s directory (which must exist).
     pub fn create(path: &Path) -> Result<AtomicFile, Error> {
         let file = path.display().to_string();
         let fail = |kind| Error::new(Location::file(&file), kind);
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        if !dir.is_dir() {
-            return Err(fail(ErrorKind::OutputDirectory {
-                dir: dir.display().to_string(),
-            }));
-        }
-        if path.is_dir() {
-            return Err(fail(ErrorKind::Io {
-                action: "write",
-                source: io::Error::other("it is a directory"),
-            }));
-        }
+        let dir = output_dir(path)?;
         let name = path
             .file_name()
             .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());

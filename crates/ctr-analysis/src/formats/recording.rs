@@ -12,7 +12,7 @@ use super::format_float;
 use crate::error::{Error, ErrorKind, Location};
 use std::fs::File;
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The tip columns of a recording, left empty for the tracker to fill.
 pub const RECORDING_TIP_COLUMNS: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
@@ -171,23 +171,7 @@ impl RecordingWriter<File> {
     /// assert_eq!(err.to_string(), "/nonexistent/rec.csv: directory /nonexistent does not exist");
     /// ```
     pub fn check_path(path: &Path) -> Result<(), Error> {
-        let fail = |kind| Error::new(Location::file(path.display().to_string()), kind);
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        if !dir.is_dir() {
-            return Err(fail(ErrorKind::OutputDirectory {
-                dir: dir.display().to_string(),
-            }));
-        }
-        if path.is_dir() {
-            return Err(fail(ErrorKind::Io {
-                action: "write",
-                source: io::Error::other("it is a directory"),
-            }));
-        }
-        Ok(())
+        super::output::output_dir(path).map(|_| ())
     }
 
     /// Asks the operating system to put everything written on the disk.
