@@ -76,11 +76,12 @@ pub enum ErrorKind {
     /// The tube parameters are refused by the core (the message names tube and field).
     #[error("{0}")]
     Robot(RobotError),
-    /// An effect table is present that the core cannot model yet.
-    #[error("model.effects.{effect}: the {effect} effect is not supported yet (ctr-core models rigid and torsion only); remove the table")]
-    UnsupportedEffect {
-        /// the effect's id (`gravity`, `friction`, ...)
-        effect: &'static str,
+    /// An effect table of `[model.effects]` does not fit the robot (the message names
+    /// the key, what was found and what was wanted).
+    #[error("{message}")]
+    Effect {
+        /// the message, starting with the key path (`model.effects.friction.rotation_play_deg: ...`)
+        message: String,
     },
     /// `[limits]` has a different number of `[[limits.tube]]` tables than the robot has tubes.
     #[error("limits: {found} [[limits.tube]] table{}, the robot has {expected} tube{}", if *.found == 1 { "" } else { "s" }, if *.expected == 1 { "" } else { "s" })]

@@ -32,6 +32,7 @@ pub mod formats;
 pub mod ik;
 pub mod job;
 mod robot;
+pub mod simulate;
 pub mod timeline;
 
 pub use error::{status_name, Error, ErrorKind, Location};

@@ -128,6 +128,39 @@ impl AnyRobot {
         with_robot!(self, r => r.tubes().len())
     }
 
+    /// A copy with each tube's E I and G J scaled by `stiffness[i]` and its precurvature
+    /// radius by `radius_factor[i]` (the `stiffness` and `precurvature` effects; see
+    /// [`Robot::scaled`]).
+    ///
+    /// # Panics
+    /// If a slice's length is not the tube count.
+    ///
+    /// ```
+    /// # use ctr_analysis::AnyRobot;
+    /// # let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33);
+    /// let r = AnyRobot::new(&[t]).unwrap();
+    /// assert!(r.scaled(&[2.0], &[1.0]).is_ok());
+    /// assert!(r.scaled(&[-1.0], &[1.0]).is_err());
+    /// ```
+    pub fn scaled(&self, stiffness: &[f64], radius_factor: &[f64]) -> Result<Self, RobotError> {
+        fn go<const N: usize>(
+            r: &Robot<f64, N>,
+            k: &[f64],
+            c: &[f64],
+        ) -> Result<Robot<f64, N>, RobotError> {
+            r.scaled(
+                core::array::from_fn(|i| k[i]),
+                core::array::from_fn(|i| c[i]),
+            )
+        }
+        Ok(match self {
+            AnyRobot::One(r) => AnyRobot::One(go(r, stiffness, radius_factor)?),
+            AnyRobot::Two(r) => AnyRobot::Two(go(r, stiffness, radius_factor)?),
+            AnyRobot::Three(r) => AnyRobot::Three(go(r, stiffness, radius_factor)?),
+            AnyRobot::Four(r) => AnyRobot::Four(go(r, stiffness, radius_factor)?),
+        })
+    }
+
     /// The parameters each tube was built from, outermost first.
     pub fn tube_params(&self) -> Vec<TubeParams<f64>> {
         with_robot!(self, r => r.tubes().iter().map(|t| *t.params()).collect())

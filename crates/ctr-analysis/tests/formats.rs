@@ -103,24 +103,40 @@ fn fitted_robot_with_model_and_limits_round_trips() {
 #[test]
 fn robot_file_with_effects_round_trips_as_a_file() {
     let text = format!(
-        "{BASE}\n[model]\nkind = \"rigid\"\n\n[model.effects]\ngravity = {{ direction_W = [-1.0, 0.0, 0.0] }}\nfriction = {{ mu = 0.2 }}\n"
+        "{BASE}\n[model]\nkind = \"rigid\"\n\n[model.effects]\nlatency = {{ tau_s = 0.1 }}\n\
+         friction = {{ rotation_play_deg = [2.0] }}\nclearance = {{ max_deflection_deg = [2.5], peak_deg = [205.0] }}\n\
+         registration = {{ translation_mm = [1.0, 2.0, 3.0], rotation_axis = [0.0, 1.0, 0.0], rotation_deg = 2.0 }}\n\
+         stiffness = {{ factor = [1.0, 1.2] }}\nsensor_offset = {{ offset_mm = [0.0, 0.0, -2.0] }}\n"
     );
     let file = RobotFile::parse(&text, "r.toml").unwrap();
     let model = file.model.as_ref().unwrap();
     assert_eq!(model.kind, ModelKind::Rigid);
-    let g = model.effects.gravity.as_ref().unwrap();
-    assert_eq!(g.direction_w, [-1.0, 0.0, 0.0]);
-    assert_eq!(g.g_m_s2, 9.81, "default g");
-    assert_eq!(model.effects.present(), ["friction", "gravity"]);
+    assert_eq!(
+        model.effects.present(),
+        [
+            "latency",
+            "friction",
+            "clearance",
+            "stiffness",
+            "sensor_offset",
+            "registration"
+        ]
+    );
     let again = RobotFile::parse(&file.to_toml(), "again.toml").unwrap();
     assert_eq!(again, file);
-    // but the core cannot model them yet
-    let e = file.validate("r.toml").unwrap_err();
-    assert!(matches!(
-        e.kind(),
-        ErrorKind::UnsupportedEffect { effect: "friction" }
-    ));
+    let spec = file.validate("r.toml").unwrap();
+    assert_eq!(spec.effects, model.effects);
+    let back = RobotSpec::from_toml_str(&spec.to_toml(), "fitted.toml").unwrap();
+    assert_eq!(back, spec);
     assert!(Effects::default().is_empty());
+    // gravity without densities is refused with its key
+    let g = format!("{BASE}\n[model.effects]\ngravity = {{ direction_W = [-1.0, 0.0, 0.0] }}\n");
+    let file = RobotFile::parse(&g, "r.toml").unwrap();
+    assert_eq!(
+        file.model.unwrap().effects.gravity.unwrap().g_m_s2,
+        9.81,
+        "default g"
+    );
 }
 
 #[test]
@@ -149,8 +165,20 @@ fn robot_errors_name_file_line_column_and_field() {
         "robot.toml:11:17: tube 1: poisson_ratio: invalid type: string \"x\", expected f64"
     );
     assert_eq!(
-        err(&format!("{BASE}\n[model.effects]\ngravity = {{ direction_W = [0.0, 0.0, -1.0] }}\n")),
-        "robot.toml:24:11: model.effects.gravity: the gravity effect is not supported yet (ctr-core models rigid and torsion only); remove the table"
+        err(&format!(
+            "{BASE}\n[model.effects]\ngravity = {{ direction_W = [0.0, 0.0, -1.0] }}\n"
+        )),
+        "robot.toml:24:11: model.effects.gravity: every tube needs density_kg_m3 to weigh it"
+    );
+    assert_eq!(
+        err(&format!("{BASE}\n[model.effects]\nfriction = {{ rotation_play_deg = [1.0, 2.0] }}\n")),
+        "robot.toml:24:34: model.effects.friction.rotation_play_deg: 2 values, wanted 1 (one per neighbouring pair of tubes)"
+    );
+    assert_eq!(
+        err(&format!(
+            "{BASE}\n[model.effects.stiffness]\nfactor = [1.0, -2.0]\n"
+        )),
+        "robot.toml:24:10: model.effects.stiffness.factor: -2 must be positive"
     );
     assert_eq!(
         err(&format!(

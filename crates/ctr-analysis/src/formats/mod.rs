@@ -24,14 +24,12 @@
 //! # gravity = { direction_W = [-1.0, 0.0, 0.0], g_m_s2 = 9.81 }
 //! ```
 //!
-//! `[model.effects]` accepts only the contract's effect ids: `friction`, `clearance`,
-//! `gravity`, `registration`, `joint_offset`, `stiffness`, `precurvature`, `latency`,
-//! `sensor_offset` (`torsion` is `kind`). Each is a table. `gravity` is typed now
-//! (`direction_W`, a unit vector in W, and `g_m_s2`, default 9.81); the other tables'
-//! keys will be fixed when the core models them. Until the core models an effect, a
-//! file that asks for it is refused with "the ... effect is not supported yet" rather
-//! than solved without it. A fitted model is written back as a robot file with its
-//! `[model]` ([`RobotSpec::to_toml`]).
+//! `[model.effects]` holds one typed table per effect id of the contract (`torsion` is
+//! `kind`): `joint_offset`, `latency`, `friction`, `clearance`, `gravity`, `stiffness`,
+//! `precurvature`, `sensor_offset`, `registration`; their keys and the order they act
+//! in are documented in [`Effects`]'s module (`formats::effects`) and
+//! `data/FORMATS-EXTENSION.md`. A fitted model is written back as a robot file with its
+//! `[model]` ([`RobotSpec::to_toml`]) and read by every command as is.
 //!
 //! A `--model` given on the command line overrides `kind`.
 //!
@@ -142,8 +140,10 @@
 
 mod actuation;
 mod csvout;
+mod effects;
 mod joints;
 mod output;
+mod recorded;
 mod recording;
 pub(crate) mod robot_file;
 mod table;
@@ -153,12 +153,16 @@ pub(crate) mod tips;
 pub use actuation::{
     ActuatedJoint, ActuationSection, ActuatorKind, JointId, DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
 };
+pub use effects::{
+    Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
+    SensorOffset, Stiffness,
+};
 pub use joints::JointTable;
 pub use output::AtomicFile;
+pub use recorded::{RecordedRow, Recording, Run};
 pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{
-    Effects, Gravity, LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile,
-    TubeLimits,
+    LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile, TubeLimits,
 };
 pub use targets::{
     ik_columns, ik_output_columns, IkOutputColumns, TargetTable, ORIENTATION_COLUMNS,

@@ -3,6 +3,7 @@
 //! The shape is documented in [the module above](super).
 
 use super::actuation::{self, ActuatedJoint, ActuationSection};
+use super::effects::Effects;
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::AnyRobot;
 use ctr_core::{Model, RobotError, TubeParams};
@@ -139,94 +140,10 @@ impl From<Model> for ModelKind {
     }
 }
 
-/// `[model.effects]`: one optional table per effect id of the formats contract. Only the
-/// keys listed here are accepted; any table present is refused at validation with
-/// "not supported yet" until the core models that effect. `gravity` already has its
-/// typed shape (that of the reference simulator's manifest); the others accept any
-/// table for now and get their shape when the core gains them.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Effects {
-    /// `friction`: inter-tube friction (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub friction: Option<toml::Table>,
-    /// `clearance`: deflection at tube exits through the clearance (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub clearance: Option<toml::Table>,
-    /// `gravity`: the tubes' own weight.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gravity: Option<Gravity>,
-    /// `registration`: tracker frame offset from W (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub registration: Option<toml::Table>,
-    /// `joint_offset`: actuator zero offsets (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub joint_offset: Option<toml::Table>,
-    /// `stiffness`: stiffness scale factors (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stiffness: Option<toml::Table>,
-    /// `precurvature`: precurvature scale factors (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub precurvature: Option<toml::Table>,
-    /// `latency`: time lag between commanded joints and measured tip (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub latency: Option<toml::Table>,
-    /// `sensor_offset`: tracked point offset in the tip frame (reserved).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sensor_offset: Option<toml::Table>,
-}
-
-impl Effects {
-    /// The ids of the effect tables present, in declaration order.
-    pub fn present(&self) -> Vec<&'static str> {
-        let Effects {
-            friction,
-            clearance,
-            gravity,
-            registration,
-            joint_offset,
-            stiffness,
-            precurvature,
-            latency,
-            sensor_offset,
-        } = self;
-        [
-            ("friction", friction.is_some()),
-            ("clearance", clearance.is_some()),
-            ("gravity", gravity.is_some()),
-            ("registration", registration.is_some()),
-            ("joint_offset", joint_offset.is_some()),
-            ("stiffness", stiffness.is_some()),
-            ("precurvature", precurvature.is_some()),
-            ("latency", latency.is_some()),
-            ("sensor_offset", sensor_offset.is_some()),
-        ]
-        .into_iter()
-        .filter_map(|(id, on)| on.then_some(id))
-        .collect()
-    }
-
-    /// True when no effect table is present.
-    pub fn is_empty(&self) -> bool {
-        self.present().is_empty()
-    }
-}
-
-/// `[model.effects.gravity]`: uniform gravity on the exposed tubes (needs each tube's
-/// `density_kg_m3`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Gravity {
-    /// Unit direction of gravity in W (`direction_W`).
-    #[serde(rename = "direction_W", deserialize_with = "exact")]
-    pub direction_w: [f64; 3],
-    /// Acceleration, m/s^2 (default 9.81).
-    #[serde(default = "standard_gravity")]
-    pub g_m_s2: f64,
-}
-
 /// An array of exactly `N` numbers (serde's own arrays ignore extra elements).
-fn exact<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+pub(crate) fn exact<'de, D: serde::Deserializer<'de>, const N: usize>(
+    d: D,
+) -> Result<[f64; N], D::Error> {
     let v = Vec::<f64>::deserialize(d)?;
     let len = v.len();
     v.try_into().map_err(|_| {
@@ -238,10 +155,6 @@ fn exact_opt<'de, D: serde::Deserializer<'de>, const N: usize>(
     d: D,
 ) -> Result<Option<[f64; N]>, D::Error> {
     exact(d).map(Some)
-}
-
-fn standard_gravity() -> f64 {
-    9.81
 }
 
 /// `[limits]`.
@@ -313,8 +226,10 @@ pub struct RobotSpec {
     pub tube_names: Vec<Option<String>>,
     /// The validated tubes.
     pub robot: AnyRobot,
-    /// `[model] kind` (no effects are supported yet).
+    /// `[model] kind`.
     pub model: Model,
+    /// `[model.effects]`, checked against the robot.
+    pub effects: Effects,
     /// `[limits]`, one entry per tube, every range finite with `min <= max`.
     pub limits: Option<Vec<TubeLimits>>,
     /// `[actuation]`, validated against the robot: exactly one feed and one rotation
@@ -370,11 +285,15 @@ impl RobotFile {
             (ErrorKind::Robot(e), path)
         })?;
         let section = self.model.clone().unwrap_or_default();
-        if let Some(effect) = section.effects.present().first() {
-            return Err((
-                ErrorKind::UnsupportedEffect { effect },
-                vec![Name("model"), Name("effects"), Name(effect)],
-            ));
+        let has_density = params.iter().all(|p| p.density_kg_m3.is_some());
+        if let Err((keys, message)) = section.effects.check(params.len(), has_density) {
+            let mut path = vec![Name("model"), Name("effects")];
+            path.extend(keys.into_iter().map(Name));
+            return Err((ErrorKind::Effect { message }, path));
+        }
+        let (stiffness, radius) = section.effects.scale_factors(params.len());
+        if let Err(e) = robot.scaled(&stiffness, &radius) {
+            return Err((ErrorKind::Robot(e), vec![Name("model"), Name("effects")]));
         }
         let limits = match &self.limits {
             None => None,
@@ -424,6 +343,7 @@ impl RobotFile {
             tube_names: self.tube.iter().map(|t| t.name.clone()).collect(),
             robot,
             model: section.kind.into(),
+            effects: section.effects,
             limits,
             actuation,
         })
@@ -496,7 +416,7 @@ impl RobotSpec {
                 .collect(),
             model: Some(ModelSection {
                 kind: self.model.into(),
-                effects: Effects::default(),
+                effects: self.effects.clone(),
             }),
             limits: self.limits.clone().map(|tube| LimitsSection { tube }),
             actuation: self

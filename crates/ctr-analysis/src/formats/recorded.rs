@@ -1,0 +1,301 @@
+//! Reading a recording (`shared/spec/formats.md`): what a robot was commanded and where
+//! its tip was measured.
+//!
+//! Required: the joint columns of the robot and `x_mm,y_mm,z_mm`. Optional: `t_s`
+//! (time, s; without it the row index stands for time), `run` (a label; rows with the
+//! same label in one contiguous block form a run; without it the whole file is one
+//! run), `qw,qx,qy,qz` (measured orientation, read and kept), `fx_n,fy_n,fz_n` (a known
+//! tip force in W, N; absent means none). Other columns are ignored. Within a run time
+//! must not decrease: friction and latency depend on the order of the rows.
+
+use super::table::closest;
+use crate::error::{Error, ErrorKind, Location};
+use crate::robot::joint_columns;
+use std::ops::Range;
+use std::path::Path;
+
+/// One row of a recording.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordedRow {
+    /// 1-based line in the file (the header is line 1).
+    pub line: usize,
+    /// Time, s (the row's index within the file when the file has no `t_s`).
+    pub t_s: f64,
+    /// Index of the run this row belongs to, into [`Recording::runs`].
+    pub run: usize,
+    /// Commanded joints, file order and units (`s1_mm, theta1_deg, ...`).
+    pub q: Vec<f64>,
+    /// Measured tip, mm, in the tracker's frame.
+    pub p: [f64; 3],
+    /// Measured orientation `w, x, y, z`, if recorded.
+    pub quaternion: Option<[f64; 4]>,
+    /// Known tip force in W, N (zero when not recorded).
+    pub force_n: [f64; 3],
+}
+
+/// A run: a label and its contiguous rows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Run {
+    /// The label (`"all"` when the file has no `run` column).
+    pub label: String,
+    /// Its rows, as indices into [`Recording::rows`].
+    pub rows: Range<usize>,
+}
+
+/// A whole recording.
+///
+/// ```
+/// use ctr_analysis::formats::Recording;
+/// let csv = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n0,a,10,0,0,0,10\n1,a,11,0,0,0,11\n0,b,12,0,0,0,12\n";
+/// let rec = Recording::read(csv.as_bytes(), "rec.csv", 1)?;
+/// assert_eq!(rec.runs.len(), 2);
+/// assert_eq!(rec.rows[2].q, [12.0, 0.0]);
+/// let bad = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n1,a,10,0,0,0,10\n0,a,11,0,0,0,11\n";
+/// let e = Recording::read(bad.as_bytes(), "rec.csv", 1).unwrap_err();
+/// assert_eq!(e.to_string(), "rec.csv:3: column t_s: 0 is earlier than the previous row's 1 in run a; rows of a run must be in time order");
+/// # Ok::<(), ctr_analysis::Error>(())
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recording {
+    /// The file as named by the caller.
+    pub file: String,
+    /// Number of tubes of the joint columns.
+    pub n_tubes: usize,
+    /// The rows in file order.
+    pub rows: Vec<RecordedRow>,
+    /// The runs in file order.
+    pub runs: Vec<Run>,
+    /// Whether the file has a `t_s` column.
+    pub has_time: bool,
+    /// Whether the file has tip force columns.
+    pub has_force: bool,
+}
+
+const TIP: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
+const QUAT: [&str; 4] = ["qw", "qx", "qy", "qz"];
+const FORCE: [&str; 3] = ["fx_n", "fy_n", "fz_n"];
+
+impl Recording {
+    /// Reads a recording of an `n_tubes`-tube robot; `file` names it in errors.
+    pub fn read(reader: impl std::io::Read, file: &str, n_tubes: usize) -> Result<Self, Error> {
+        let data = super::table::read_all(reader, file)?;
+        Self::parse(&data, file, n_tubes)
+    }
+
+    /// Reads a recording file; errors name the path as given.
+    pub fn from_path(path: &Path, n_tubes: usize) -> Result<Self, Error> {
+        let (file, data) = super::table::read_path(path)?;
+        Self::parse(&data, &file, n_tubes)
+    }
+
+    fn parse(data: &[u8], file: &str, n_tubes: usize) -> Result<Self, Error> {
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .from_reader(data);
+        let mut records = reader.records();
+        let header = match records.next() {
+            None => {
+                return Err(Error::new(
+                    Location::file(file),
+                    ErrorKind::EmptyFile {
+                        expected: required(n_tubes).join(","),
+                    },
+                ))
+            }
+            Some(r) => r.map_err(|e| csv_error(e, file))?,
+        };
+        let names: Vec<&str> = header.iter().map(str::trim).collect();
+        for (i, n) in names.iter().enumerate() {
+            if !n.is_empty() && names[..i].contains(n) {
+                return Err(Error::new(
+                    Location::line(file, 1),
+                    ErrorKind::DuplicateColumn {
+                        name: (*n).to_owned(),
+                    },
+                ));
+            }
+        }
+        let find = |c: &str| names.iter().position(|n| *n == c);
+        let need = required(n_tubes);
+        let mut idx = Vec::with_capacity(need.len());
+        for c in &need {
+            match find(c) {
+                Some(i) => idx.push(i),
+                None => {
+                    return Err(Error::new(
+                        Location::line(file, 1),
+                        ErrorKind::MissingColumn {
+                            name: c.clone(),
+                            similar: closest(c, names.iter().filter(|n| find_in(&need, n)))
+                                .map(str::to_owned),
+                            required: need.join(","),
+                        },
+                    ))
+                }
+            }
+        }
+        let group = |cols: &[&str]| -> Result<Option<Vec<usize>>, Error> {
+            let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
+            if found.iter().all(Option::is_none) {
+                return Ok(None);
+            }
+            match found.iter().position(Option::is_none) {
+                None => Ok(Some(found.into_iter().flatten().collect())),
+                Some(k) => Err(Error::new(
+                    Location::line(file, 1),
+                    ErrorKind::MissingColumn {
+                        name: cols[k].to_owned(),
+                        similar: None,
+                        required: cols.join(","),
+                    },
+                )),
+            }
+        };
+        let quat = group(&QUAT)?;
+        let force = group(&FORCE)?;
+        let time = find("t_s");
+        let run_col = find("run");
+        let width = names.len();
+
+        let mut rows = Vec::new();
+        let mut runs: Vec<Run> = Vec::new();
+        for (k, record) in records.enumerate() {
+            let record = record.map_err(|e| csv_error(e, file))?;
+            let line = record.position().map_or(k + 2, |p| p.line() as usize);
+            let at = |kind| Error::new(Location::line(file, line), kind);
+            if record.len() != width {
+                return Err(at(ErrorKind::RaggedRow {
+                    found: record.len(),
+                    expected: width,
+                }));
+            }
+            let num = |i: usize| -> Result<f64, Error> {
+                let cell = record[i].trim();
+                match cell.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(v),
+                    Ok(_) => Err(at(ErrorKind::NotFinite {
+                        column: names[i].to_owned(),
+                        found: cell.to_owned(),
+                    })),
+                    Err(_) => Err(at(ErrorKind::NotANumber {
+                        column: names[i].to_owned(),
+                        found: cell.to_owned(),
+                    })),
+                }
+            };
+            let values = idx
+                .iter()
+                .map(|&i| num(i))
+                .collect::<Result<Vec<f64>, _>>()?;
+            let q = values[..2 * n_tubes].to_vec();
+            let p = [
+                values[2 * n_tubes],
+                values[2 * n_tubes + 1],
+                values[2 * n_tubes + 2],
+            ];
+            let t_s = match time {
+                Some(i) => num(i)?,
+                None => rows.len() as f64,
+            };
+            let label = run_col.map_or("all", |i| record[i].trim());
+            let quaternion = match &quat {
+                Some(c) => Some([num(c[0])?, num(c[1])?, num(c[2])?, num(c[3])?]),
+                None => None,
+            };
+            let force_n = match &force {
+                Some(c) => [num(c[0])?, num(c[1])?, num(c[2])?],
+                None => [0.0; 3],
+            };
+            let i = rows.len();
+            match runs.last_mut() {
+                Some(r) if r.label == label => {
+                    let prev: &RecordedRow = &rows[i - 1];
+                    if t_s < prev.t_s {
+                        return Err(at(ErrorKind::Csv {
+                            message: format!(
+                                "column t_s: {t_s} is earlier than the previous row's {} in run \
+                                 {label}; rows of a run must be in time order",
+                                prev.t_s
+                            ),
+                        }));
+                    }
+                    r.rows.end = i + 1;
+                }
+                _ => runs.push(Run {
+                    label: label.to_owned(),
+                    rows: i..i + 1,
+                }),
+            }
+            rows.push(RecordedRow {
+                line,
+                t_s,
+                run: runs.len() - 1,
+                q,
+                p,
+                quaternion,
+                force_n,
+            });
+        }
+        if rows.is_empty() {
+            return Err(Error::new(
+                Location::file(file),
+                ErrorKind::Csv {
+                    message: "no rows after the header; a recording needs at least one".into(),
+                },
+            ));
+        }
+        Ok(Recording {
+            file: file.to_owned(),
+            n_tubes,
+            rows,
+            runs,
+            has_time: time.is_some(),
+            has_force: force.is_some(),
+        })
+    }
+
+    /// The commanded joints of a run's rows.
+    pub fn run_joints(&self, run: usize) -> Vec<Vec<f64>> {
+        self.rows[self.runs[run].rows.clone()]
+            .iter()
+            .map(|r| r.q.clone())
+            .collect()
+    }
+
+    /// The times of a run's rows.
+    pub fn run_times(&self, run: usize) -> Vec<f64> {
+        self.rows[self.runs[run].rows.clone()]
+            .iter()
+            .map(|r| r.t_s)
+            .collect()
+    }
+}
+
+fn required(n_tubes: usize) -> Vec<String> {
+    joint_columns(n_tubes)
+        .into_iter()
+        .chain(TIP.iter().map(|c| (*c).to_owned()))
+        .collect()
+}
+
+/// A header name that is not already one of the wanted columns (a candidate for "did
+/// you mean").
+fn find_in(need: &[String], name: &str) -> bool {
+    !need.iter().any(|c| c == name)
+}
+
+fn csv_error(e: csv::Error, file: &str) -> Error {
+    let line = e.position().map(|p| p.line() as usize);
+    let message = match e.kind() {
+        csv::ErrorKind::Utf8 { err, .. } => {
+            format!("field {}: not valid UTF-8 text", err.field() + 1)
+        }
+        _ => super::robot_file::one_line(&e.to_string()),
+    };
+    let location = match line {
+        Some(l) => Location::line(file, l),
+        None => Location::file(file),
+    };
+    Error::new(location, ErrorKind::Csv { message })
+}

@@ -1,0 +1,113 @@
+//! The simulator with effects from a robot file reproduces the shared recordings down
+//! to their noise floor when given the concealed effect at its true value.
+
+use ctr_analysis::formats::{
+    Clearance, Effects, Friction, Gravity, Latency, Recording, Registration, RobotSpec,
+};
+use ctr_analysis::simulate::{predict, ModelSpec};
+use serde_json::Value;
+use std::path::PathBuf;
+
+fn shared() -> PathBuf {
+    std::env::var_os("CTR_SHARED_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        PathBuf::from,
+    )
+}
+
+fn load(id: &str) -> (ModelSpec, Recording, Value) {
+    let dir = shared().join("recordings");
+    let truth: Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join(format!("{id}.truth.json"))).unwrap(),
+    )
+    .unwrap();
+    let robot = truth["robot_file"]
+        .as_str()
+        .unwrap()
+        .trim_start_matches("shared/data/");
+    let spec = RobotSpec::from_path(&shared().join(robot)).unwrap();
+    let rec = Recording::from_path(&dir.join(format!("{id}.csv")), spec.robot.n_tubes()).unwrap();
+    (ModelSpec::from_spec(&spec), rec, truth)
+}
+
+fn rms(model: &ModelSpec, rec: &Recording) -> f64 {
+    let runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let pred = predict(model, rec, &runs).unwrap();
+    assert_eq!(pred.failed, 0);
+    let sum: f64 = rec
+        .rows
+        .iter()
+        .zip(&pred.p)
+        .map(|(r, p)| (0..3).map(|k| (r.p[k] - p[k]).powi(2)).sum::<f64>())
+        .sum();
+    (sum / rec.rows.len() as f64).sqrt()
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap()
+}
+
+fn v3(v: &Value) -> [f64; 3] {
+    std::array::from_fn(|i| f(&v[i]))
+}
+
+/// The truth file's effects in the robot file's terms.
+fn truth_effects(truth: &Value, n: usize) -> Effects {
+    let e = &truth["world"]["effects"];
+    let mut out = Effects::default();
+    if let Some(c) = e.get("clearance") {
+        out.clearance = Some(Clearance {
+            max_deflection_deg: vec![f(&c["delta_max_deg"]); n - 1],
+            peak_deg: vec![f(&c["phi0_deg"]); n - 1],
+            table_deg: vec![],
+        });
+    }
+    if let Some(c) = e.get("friction") {
+        out.friction = Some(Friction {
+            rotation_play_deg: vec![f(&c["rotation_play_half_width_deg"]); n - 1],
+            feed_play_mm: vec![],
+        });
+    }
+    if let Some(c) = e.get("latency") {
+        out.latency = Some(Latency {
+            tau_s: f(&c["tau_s"]),
+        });
+    }
+    if let Some(c) = e.get("gravity") {
+        out.gravity = Some(Gravity {
+            direction_w: v3(&c["direction_W"]),
+            g_m_s2: f(&c["g_m_s2"]),
+        });
+    }
+    if let Some(c) = e.get("registration") {
+        out.registration = Some(Registration {
+            translation_mm: v3(&c["translation_mm"]),
+            rotation_axis: v3(&c["rotation_axis"]),
+            rotation_deg: f(&c["rotation_deg"]),
+        });
+    }
+    out
+}
+
+#[test]
+fn true_effects_reach_the_noise_floor() {
+    for id in [
+        "dev-clean",
+        "dev-clearance",
+        "dev-friction",
+        "dev-gravity",
+        "dev-latency",
+        "dev-registration",
+    ] {
+        let (mut model, rec, truth) = load(id);
+        let floor = f(&truth["noise_floor_rms_mm"]);
+        let without = rms(&model, &rec);
+        model.effects = truth_effects(&truth, model.robot.n_tubes());
+        let with = rms(&model, &rec);
+        eprintln!("{id}: {without:.4} mm without, {with:.4} with, floor {floor:.4}");
+        assert!(with <= 1.02 * floor, "{id}");
+        if id != "dev-clean" {
+            assert!(without > 1.5 * floor, "{id}");
+        }
+    }
+}
