@@ -27,6 +27,7 @@
 //! ```
 
 pub mod batch;
+pub mod diagnose;
 mod error;
 pub mod formats;
 pub mod ik;

@@ -1,0 +1,396 @@
+//! The effects of the contract's vocabulary as parameter blocks a fit can turn on and
+//! tune: how each is written into a model, where its parameters start, their scales
+//! (finite-difference steps) and bounds.
+//!
+//! | effect | parameters (units) |
+//! |---|---|
+//! | `torsion` | none: the base model becomes the torsion model |
+//! | `friction` | rotation play half-width per neighbouring pair (deg), feed play per tube (mm) |
+//! | `clearance` | per pair: largest kink (deg) and the relative angle where it peaks (deg) |
+//! | `gravity` | gravity vector in W (m/s^2): direction and size (absorbs a density error) |
+//! | `registration` | translation (mm) and rotation vector (deg) of the tracker frame |
+//! | `joint_offset` | feed (mm) and rotation (deg) zero of every tube |
+//! | `stiffness` | ln of each tube's modulus factor |
+//! | `precurvature` | ln of each tube's curvature-radius factor |
+//! | `latency` | delay of the robot behind its commands (s) |
+//! | `sensor_offset` | tracked point in the tip frame (mm) |
+
+use crate::formats::{
+    Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
+    SensorOffset, Stiffness,
+};
+use crate::simulate::ModelSpec;
+use ctr_core::Model;
+use serde::Serialize;
+
+/// An effect id of the contract (`shared/spec/formats.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectId {
+    /// Tubes twist along their length.
+    Torsion,
+    /// Friction between tubes (hysteresis).
+    Friction,
+    /// Clearance kinks at the tubes' exits.
+    Clearance,
+    /// The tubes' weight.
+    Gravity,
+    /// Tracker frame offset from W.
+    Registration,
+    /// Actuator zero offsets.
+    JointOffset,
+    /// Stiffness scale factors.
+    Stiffness,
+    /// Precurvature scale factors.
+    Precurvature,
+    /// Time lag of the robot behind its commands.
+    Latency,
+    /// Tracked point offset from the tip.
+    SensorOffset,
+}
+
+impl EffectId {
+    /// All ten, in the contract's order.
+    pub const ALL: [EffectId; 10] = [
+        EffectId::Torsion,
+        EffectId::Friction,
+        EffectId::Clearance,
+        EffectId::Gravity,
+        EffectId::Registration,
+        EffectId::JointOffset,
+        EffectId::Stiffness,
+        EffectId::Precurvature,
+        EffectId::Latency,
+        EffectId::SensorOffset,
+    ];
+
+    /// The contract's id.
+    ///
+    /// ```
+    /// assert_eq!(ctr_analysis::diagnose::EffectId::JointOffset.as_str(), "joint_offset");
+    /// ```
+    pub fn as_str(self) -> &'static str {
+        match self {
+            EffectId::Torsion => "torsion",
+            EffectId::Friction => "friction",
+            EffectId::Clearance => "clearance",
+            EffectId::Gravity => "gravity",
+            EffectId::Registration => "registration",
+            EffectId::JointOffset => "joint_offset",
+            EffectId::Stiffness => "stiffness",
+            EffectId::Precurvature => "precurvature",
+            EffectId::Latency => "latency",
+            EffectId::SensorOffset => "sensor_offset",
+        }
+    }
+
+    /// Parses a contract id.
+    ///
+    /// ```
+    /// use ctr_analysis::diagnose::EffectId;
+    /// assert_eq!(EffectId::parse("latency"), Some(EffectId::Latency));
+    /// assert_eq!(EffectId::parse("lag"), None);
+    /// ```
+    pub fn parse(s: &str) -> Option<Self> {
+        EffectId::ALL.into_iter().find(|e| e.as_str() == s)
+    }
+
+    /// True when the model already has the effect.
+    pub fn present_in(self, m: &ModelSpec) -> bool {
+        let e = &m.effects;
+        match self {
+            EffectId::Torsion => m.model == Model::Torsion,
+            EffectId::Friction => e.friction.is_some(),
+            EffectId::Clearance => e.clearance.is_some(),
+            EffectId::Gravity => e.gravity.is_some(),
+            EffectId::Registration => e.registration.is_some(),
+            EffectId::JointOffset => e.joint_offset.is_some(),
+            EffectId::Stiffness => e.stiffness.is_some(),
+            EffectId::Precurvature => e.precurvature.is_some(),
+            EffectId::Latency => e.latency.is_some(),
+            EffectId::SensorOffset => e.sensor_offset.is_some(),
+        }
+    }
+
+    /// Number of parameters for a robot of `n` tubes.
+    pub fn n_params(self, n: usize) -> usize {
+        let pairs = n.saturating_sub(1);
+        match self {
+            EffectId::Torsion => 0,
+            EffectId::Friction => pairs + n,
+            EffectId::Clearance => 2 * pairs,
+            EffectId::Gravity => 3,
+            EffectId::Registration => 6,
+            EffectId::JointOffset => 2 * n,
+            EffectId::Stiffness | EffectId::Precurvature => n,
+            EffectId::Latency => 1,
+            EffectId::SensorOffset => 3,
+        }
+    }
+
+    /// Finite-difference step of parameter `i` (its natural scale).
+    pub(crate) fn step(self, n: usize, i: usize) -> f64 {
+        let pairs = n.saturating_sub(1);
+        match self {
+            EffectId::Torsion => 1.0,
+            EffectId::Friction => {
+                if i < pairs {
+                    0.05
+                } else {
+                    0.005
+                }
+            }
+            EffectId::Clearance => 0.05,
+            EffectId::Gravity => 0.2,
+            EffectId::Registration => 0.01,
+            EffectId::JointOffset => {
+                if i < n {
+                    0.01
+                } else {
+                    0.05
+                }
+            }
+            EffectId::Stiffness | EffectId::Precurvature => 1e-3,
+            EffectId::Latency => 0.005,
+            EffectId::SensorOffset => 0.01,
+        }
+    }
+
+    /// Bounds of parameter `i`.
+    pub(crate) fn bounds(self, n: usize, i: usize) -> (f64, f64) {
+        let pairs = n.saturating_sub(1);
+        const FREE: (f64, f64) = (f64::NEG_INFINITY, f64::INFINITY);
+        match self {
+            EffectId::Torsion => FREE,
+            EffectId::Friction => {
+                if i < pairs {
+                    (0.0, MAX_ROTATION_PLAY_DEG)
+                } else {
+                    (0.0, MAX_FEED_PLAY_MM)
+                }
+            }
+            EffectId::Clearance => {
+                if i % 2 == 0 {
+                    (0.0, MAX_KINK_DEG)
+                } else {
+                    FREE
+                }
+            }
+            EffectId::Gravity => (-MAX_GRAVITY_M_S2, MAX_GRAVITY_M_S2),
+            EffectId::Registration => FREE,
+            EffectId::JointOffset => {
+                if i < n {
+                    (-MAX_FEED_OFFSET_MM, MAX_FEED_OFFSET_MM)
+                } else {
+                    (-180.0, 180.0)
+                }
+            }
+            EffectId::Stiffness | EffectId::Precurvature => (-MAX_LN_FACTOR, MAX_LN_FACTOR),
+            EffectId::Latency => (-MAX_LATENCY_S, MAX_LATENCY_S),
+            EffectId::SensorOffset => (-MAX_SENSOR_OFFSET_MM, MAX_SENSOR_OFFSET_MM),
+        }
+    }
+
+    /// Starting points of a fit of this effect alone (several where the fit is not
+    /// convex in a parameter: the peak angle of a clearance profile, the latency).
+    pub(crate) fn starts(self, n: usize, sample_period_s: f64) -> Vec<Vec<f64>> {
+        let pairs = n.saturating_sub(1);
+        let k = self.n_params(n);
+        match self {
+            EffectId::Friction => {
+                let mut x = vec![0.0; k];
+                for v in &mut x[..pairs] {
+                    *v = 1.0;
+                }
+                vec![x]
+            }
+            EffectId::Clearance => [0.0, 90.0, 180.0, 270.0]
+                .into_iter()
+                .map(|peak| (0..pairs).flat_map(|_| [1.0, peak]).collect())
+                .collect(),
+            EffectId::Latency => {
+                let dt = if sample_period_s.is_finite() && sample_period_s > 0.0 {
+                    sample_period_s
+                } else {
+                    0.1
+                };
+                vec![vec![0.0], vec![dt], vec![-dt], vec![3.0 * dt]]
+            }
+            _ => vec![vec![0.0; k]],
+        }
+    }
+
+    /// The effect's parameters as the model holds them (zeros when absent).
+    pub(crate) fn read(self, m: &ModelSpec) -> Vec<f64> {
+        let n = m.robot.n_tubes();
+        let pairs = n.saturating_sub(1);
+        let e = &m.effects;
+        let or0 = |v: &[f64], len: usize| -> Vec<f64> {
+            (0..len).map(|i| v.get(i).copied().unwrap_or(0.0)).collect()
+        };
+        match self {
+            EffectId::Torsion => vec![],
+            EffectId::Friction => e.friction.as_ref().map_or(vec![0.0; pairs + n], |f| {
+                let mut x = or0(&f.rotation_play_deg, pairs);
+                x.extend(or0(&f.feed_play_mm, n));
+                x
+            }),
+            EffectId::Clearance => e.clearance.as_ref().map_or(vec![0.0; 2 * pairs], |c| {
+                (0..pairs)
+                    .flat_map(|i| {
+                        [
+                            c.max_deflection_deg.get(i).copied().unwrap_or(0.0),
+                            c.peak_deg.get(i).copied().unwrap_or(0.0),
+                        ]
+                    })
+                    .collect()
+            }),
+            EffectId::Gravity => e.gravity.as_ref().map_or(vec![0.0; 3], |g| {
+                g.direction_w.iter().map(|d| d * g.g_m_s2).collect()
+            }),
+            EffectId::Registration => e.registration.map_or(vec![0.0; 6], |r| {
+                let mut x = r.translation_mm.to_vec();
+                x.extend(r.rotation_vector_deg());
+                x
+            }),
+            EffectId::JointOffset => e.joint_offset.as_ref().map_or(vec![0.0; 2 * n], |o| {
+                let mut x = or0(&o.feed_mm, n);
+                x.extend(or0(&o.rotation_deg, n));
+                x
+            }),
+            EffectId::Stiffness => e
+                .stiffness
+                .as_ref()
+                .map_or(vec![0.0; n], |s| s.factor.iter().map(|f| f.ln()).collect()),
+            EffectId::Precurvature => e.precurvature.as_ref().map_or(vec![0.0; n], |p| {
+                p.radius_factor.iter().map(|f| f.ln()).collect()
+            }),
+            EffectId::Latency => vec![e.latency.map_or(0.0, |l| l.tau_s)],
+            EffectId::SensorOffset => e
+                .sensor_offset
+                .map_or(vec![0.0; 3], |s| s.offset_mm.to_vec()),
+        }
+    }
+
+    /// Writes the effect with parameters `x` into the model (turning it on).
+    pub(crate) fn write(self, m: &mut ModelSpec, x: &[f64]) {
+        let n = m.robot.n_tubes();
+        let pairs = n.saturating_sub(1);
+        let e = &mut m.effects;
+        match self {
+            EffectId::Torsion => m.model = Model::Torsion,
+            EffectId::Friction => {
+                e.friction = Some(Friction {
+                    rotation_play_deg: x[..pairs].to_vec(),
+                    feed_play_mm: x[pairs..pairs + n].to_vec(),
+                })
+            }
+            EffectId::Clearance => {
+                e.clearance = Some(Clearance {
+                    max_deflection_deg: (0..pairs).map(|i| x[2 * i]).collect(),
+                    peak_deg: (0..pairs).map(|i| x[2 * i + 1].rem_euclid(360.0)).collect(),
+                    table_deg: vec![],
+                })
+            }
+            EffectId::Gravity => {
+                let g = nalgebra::Vector3::new(x[0], x[1], x[2]);
+                let size = g.norm();
+                e.gravity = Some(if size > 0.0 {
+                    Gravity {
+                        direction_w: (g / size).into(),
+                        g_m_s2: size,
+                    }
+                } else {
+                    Gravity {
+                        direction_w: [-1.0, 0.0, 0.0],
+                        g_m_s2: 0.0,
+                    }
+                })
+            }
+            EffectId::Registration => {
+                e.registration = Some(Registration::from_rotation_vector(
+                    [x[3], x[4], x[5]],
+                    [x[0], x[1], x[2]],
+                ))
+            }
+            EffectId::JointOffset => {
+                e.joint_offset = Some(JointOffset {
+                    feed_mm: x[..n].to_vec(),
+                    rotation_deg: x[n..2 * n].to_vec(),
+                })
+            }
+            EffectId::Stiffness => {
+                e.stiffness = Some(Stiffness {
+                    factor: x.iter().map(|v| v.exp()).collect(),
+                })
+            }
+            EffectId::Precurvature => {
+                e.precurvature = Some(Precurvature {
+                    radius_factor: x.iter().map(|v| v.exp()).collect(),
+                })
+            }
+            EffectId::Latency => e.latency = Some(Latency { tau_s: x[0] }),
+            EffectId::SensorOffset => {
+                e.sensor_offset = Some(SensorOffset {
+                    offset_mm: [x[0], x[1], x[2]],
+                })
+            }
+        }
+    }
+
+    /// Names and units of the parameters, for the report (`max_deflection_deg_1`, ...).
+    pub(crate) fn param_names(self, n: usize) -> Vec<String> {
+        let pairs = n.saturating_sub(1);
+        let per = |name: &str, count: usize| -> Vec<String> {
+            (1..=count).map(|i| format!("{name}_{i}")).collect()
+        };
+        match self {
+            EffectId::Torsion => vec![],
+            EffectId::Friction => {
+                let mut v = per("rotation_play_half_width_deg", pairs);
+                v.extend(per("feed_play_half_width_mm", n));
+                v
+            }
+            EffectId::Clearance => (1..=pairs)
+                .flat_map(|i| [format!("max_deflection_deg_{i}"), format!("peak_deg_{i}")])
+                .collect(),
+            EffectId::Gravity => vec!["g_x_m_s2".into(), "g_y_m_s2".into(), "g_z_m_s2".into()],
+            EffectId::Registration => [
+                "translation_x_mm",
+                "translation_y_mm",
+                "translation_z_mm",
+                "rotation_x_deg",
+                "rotation_y_deg",
+                "rotation_z_deg",
+            ]
+            .map(String::from)
+            .to_vec(),
+            EffectId::JointOffset => {
+                let mut v = per("feed_offset_mm", n);
+                v.extend(per("rotation_offset_deg", n));
+                v
+            }
+            EffectId::Stiffness => per("ln_stiffness_factor", n),
+            EffectId::Precurvature => per("ln_radius_factor", n),
+            EffectId::Latency => vec!["tau_s".into()],
+            EffectId::SensorOffset => vec!["x_mm".into(), "y_mm".into(), "z_mm".into()],
+        }
+    }
+}
+
+/// Largest rotation play half-width a fit may reach, deg.
+const MAX_ROTATION_PLAY_DEG: f64 = 45.0;
+/// Largest feed play half-width, mm.
+const MAX_FEED_PLAY_MM: f64 = 5.0;
+/// Largest clearance kink, deg.
+const MAX_KINK_DEG: f64 = 20.0;
+/// Largest gravity component, m/s^2 (three times standard gravity: a density error).
+const MAX_GRAVITY_M_S2: f64 = 30.0;
+/// Largest feed offset, mm.
+const MAX_FEED_OFFSET_MM: f64 = 15.0;
+/// Largest |ln factor| of stiffness and radius factors (a factor of e^2 either way).
+const MAX_LN_FACTOR: f64 = 2.0;
+/// Largest |latency|, s.
+const MAX_LATENCY_S: f64 = 5.0;
+/// Largest sensor offset component, mm.
+const MAX_SENSOR_OFFSET_MM: f64 = 50.0;

@@ -1,0 +1,370 @@
+//! Robust bounded least squares of effect parameters against a recording.
+//!
+//! The residual of row i is `e_i = predicted_i - measured_i` (mm, 3 components). The
+//! cost is Huber's on the row's error norm (quadratic up to `c`, linear beyond), so a
+//! few tracker outliers cannot decide a fit:
+//!
+//! ```text
+//! rho(|e|) = |e|^2 for |e| <= c,   2 c |e| - c^2 beyond
+//! ```
+//!
+//! minimised by Levenberg-Marquardt on iteratively reweighted least squares (weights
+//! `w_i = min(1, c / |e_i|)`). The Jacobian of the predictions with respect to the
+//! parameters comes from the simulator by central differences at each parameter's
+//! natural scale (one-sided at a bound), its columns computed on all cores. Each step
+//! solves `(J^T W J + lambda D) d = -J^T W e`; when the step leaves the parameters'
+//! bounds it is solved again as a box-constrained QP with clarabel.
+
+use super::candidates::EffectId;
+use crate::formats::Recording;
+use crate::simulate::{predict, ModelSpec};
+use nalgebra::{DMatrix, DVector};
+
+/// A fit problem: which effects' parameters move, on which rows.
+#[derive(Clone, Debug)]
+pub(crate) struct Problem<'a> {
+    /// The model with every effect that is not fitted.
+    pub base: ModelSpec,
+    /// The effects fitted, their parameters concatenated in this order.
+    pub blocks: Vec<EffectId>,
+    pub rec: &'a Recording,
+    /// Runs simulated (those that hold `rows`).
+    pub runs: Vec<usize>,
+    /// Rows whose residuals count.
+    pub rows: Vec<usize>,
+    /// Huber threshold on a row's error norm, mm.
+    pub huber_mm: f64,
+    /// Threads for the Jacobian's columns.
+    pub threads: usize,
+}
+
+/// Where a fit ended.
+#[derive(Clone, Debug)]
+pub(crate) struct Fitted {
+    pub x: Vec<f64>,
+    /// Robust cost (sum over rows of rho), mm^2.
+    pub cost: f64,
+}
+
+impl Problem<'_> {
+    pub fn n_tubes(&self) -> usize {
+        self.base.robot.n_tubes()
+    }
+
+    pub fn n_params(&self) -> usize {
+        self.blocks.iter().map(|b| b.n_params(self.n_tubes())).sum()
+    }
+
+    /// The model with parameters `x`.
+    pub fn model(&self, x: &[f64]) -> ModelSpec {
+        let mut m = self.base.clone();
+        let n = self.n_tubes();
+        let mut at = 0;
+        for b in &self.blocks {
+            let k = b.n_params(n);
+            b.write(&mut m, &x[at..at + k]);
+            at += k;
+        }
+        m
+    }
+
+    fn scale(&self, j: usize) -> (f64, (f64, f64)) {
+        let n = self.n_tubes();
+        let mut at = 0;
+        for b in &self.blocks {
+            let k = b.n_params(n);
+            if j < at + k {
+                return (b.step(n, j - at), b.bounds(n, j - at));
+            }
+            at += k;
+        }
+        unreachable!("parameter index within the blocks")
+    }
+
+    /// Predictions of the counted rows, 3 per row; `None` where the model cannot be
+    /// simulated (joints pushed out of range, ...).
+    pub fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
+        let pred = predict(&self.model(x), self.rec, &self.runs).ok()?;
+        let mut out = Vec::with_capacity(3 * self.rows.len());
+        for &r in &self.rows {
+            out.extend_from_slice(&pred.p[r]);
+        }
+        out.iter().all(|v| v.is_finite()).then_some(out)
+    }
+
+    fn errors(&self, pred: &[f64]) -> Vec<f64> {
+        let mut e = pred.to_vec();
+        for (k, &r) in self.rows.iter().enumerate() {
+            for a in 0..3 {
+                e[3 * k + a] -= self.rec.rows[r].p[a];
+            }
+        }
+        e
+    }
+
+    /// Robust cost and IRLS weights of the errors.
+    fn cost(&self, e: &[f64]) -> (f64, Vec<f64>) {
+        let c = self.huber_mm;
+        let mut cost = 0.0;
+        let w = e
+            .chunks(3)
+            .map(|v| {
+                let d = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                if d <= c {
+                    cost += d * d;
+                    1.0
+                } else {
+                    cost += 2.0 * c * d - c * c;
+                    c / d
+                }
+            })
+            .collect();
+        (cost, w)
+    }
+
+    /// Robust cost at `x` (`None` if it cannot be simulated).
+    pub fn cost_at(&self, x: &[f64]) -> Option<f64> {
+        let p = self.predictions(x)?;
+        Some(self.cost(&self.errors(&p)).0)
+    }
+
+    /// Jacobian of the predictions by central differences (one-sided at a bound).
+    fn jacobian(&self, x: &[f64], p0: &[f64]) -> Option<DMatrix<f64>> {
+        let np = x.len();
+        let m = p0.len();
+        let column = |j: usize| -> Option<Vec<f64>> {
+            let (h, (lo, hi)) = self.scale(j);
+            let mut xp = x.to_vec();
+            let mut xm = x.to_vec();
+            let (mut up, mut down) = (h, h);
+            if x[j] + h > hi {
+                up = 0.0;
+            }
+            if x[j] - h < lo {
+                down = 0.0;
+            }
+            if up == 0.0 && down == 0.0 {
+                return Some(vec![0.0; m]);
+            }
+            xp[j] += up;
+            xm[j] -= down;
+            let pp = if up > 0.0 {
+                self.predictions(&xp)?
+            } else {
+                p0.to_vec()
+            };
+            let pm = if down > 0.0 {
+                self.predictions(&xm)?
+            } else {
+                p0.to_vec()
+            };
+            Some(
+                pp.iter()
+                    .zip(&pm)
+                    .map(|(a, b)| (a - b) / (up + down))
+                    .collect(),
+            )
+        };
+        let threads = self.threads.clamp(1, np.max(1));
+        let mut cols: Vec<Option<Vec<f64>>> = vec![None; np];
+        std::thread::scope(|s| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    let column = &column;
+                    s.spawn(move || {
+                        (t..np)
+                            .step_by(threads)
+                            .map(|j| (j, column(j)))
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            for h in handles {
+                for (j, c) in h.join().expect("a Jacobian column does not panic") {
+                    cols[j] = c;
+                }
+            }
+        });
+        let mut jac = DMatrix::zeros(m, np);
+        for (j, c) in cols.into_iter().enumerate() {
+            let c = c?;
+            jac.set_column(j, &DVector::from_vec(c));
+        }
+        Some(jac)
+    }
+
+    /// Levenberg-Marquardt from `x0` (clamped to the bounds) for at most `max_iter`
+    /// Jacobians; `None` if the start cannot be simulated.
+    pub fn fit(&self, x0: &[f64], max_iter: usize) -> Option<Fitted> {
+        let np = x0.len();
+        let bounds: Vec<(f64, f64)> = (0..np).map(|j| self.scale(j).1).collect();
+        let mut x: Vec<f64> = x0
+            .iter()
+            .zip(&bounds)
+            .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
+            .collect();
+        let mut p = self.predictions(&x)?;
+        let mut e = self.errors(&p);
+        let (mut cost, mut w) = self.cost(&e);
+        if np == 0 {
+            return Some(Fitted { x, cost });
+        }
+        let mut lambda: f64 = 1e-3;
+        for _ in 0..max_iter {
+            let Some(jac) = self.jacobian(&x, &p) else {
+                break;
+            };
+            // weighted normal equations
+            let mut h = DMatrix::<f64>::zeros(np, np);
+            let mut g = DVector::<f64>::zeros(np);
+            for (row, wr) in w.iter().enumerate() {
+                for a in 0..3 {
+                    let i = 3 * row + a;
+                    let ji = jac.row(i);
+                    for c1 in 0..np {
+                        let v = wr * ji[c1];
+                        if v == 0.0 {
+                            continue;
+                        }
+                        g[c1] += v * e[i];
+                        for c2 in c1..np {
+                            h[(c1, c2)] += v * ji[c2];
+                        }
+                    }
+                }
+            }
+            for c1 in 0..np {
+                for c2 in 0..c1 {
+                    h[(c1, c2)] = h[(c2, c1)];
+                }
+            }
+            let dmax = (0..np).map(|j| h[(j, j)]).fold(0.0, f64::max);
+            if dmax <= 0.0 {
+                break;
+            }
+            let mut improved = false;
+            for _ in 0..12 {
+                let mut a = h.clone();
+                for j in 0..np {
+                    a[(j, j)] += lambda * h[(j, j)].max(1e-9 * dmax);
+                }
+                let Some(step) = solve_step(&a, &g, &x, &bounds) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let xn: Vec<f64> = x.iter().zip(&step).map(|(a, b)| a + b).collect();
+                if let Some(pn) = self.predictions(&xn) {
+                    let en = self.errors(&pn);
+                    let (cn, wn) = self.cost(&en);
+                    if cn < cost {
+                        let rel = (cost - cn) / cost.max(f64::MIN_POSITIVE);
+                        let small = step
+                            .iter()
+                            .enumerate()
+                            .all(|(j, d)| d.abs() < 1e-3 * self.scale(j).0);
+                        x = xn;
+                        p = pn;
+                        e = en;
+                        cost = cn;
+                        w = wn;
+                        lambda = (lambda / 3.0).max(1e-9);
+                        improved = !(rel < 1e-7 || small);
+                        break;
+                    }
+                }
+                lambda *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        Some(Fitted { x, cost })
+    }
+}
+
+/// The damped step `a d = -g`, inside the bounds (a box QP when the plain step leaves
+/// them).
+fn solve_step(a: &DMatrix<f64>, g: &DVector<f64>, x: &[f64], bounds: &[(f64, f64)]) -> Option<Vec<f64>> {
+    let d = a.clone().cholesky()?.solve(&(-g));
+    let inside = d
+        .iter()
+        .zip(x)
+        .zip(bounds)
+        .all(|((d, x), (lo, hi))| x + d >= *lo && x + d <= *hi);
+    if inside {
+        return Some(d.iter().copied().collect());
+    }
+    box_qp(a, g, x, bounds)
+}
+
+/// `min 1/2 d^T a d + g^T d` subject to `lo - x <= d <= hi - x`, by clarabel.
+fn box_qp(a: &DMatrix<f64>, g: &DVector<f64>, x: &[f64], bounds: &[(f64, f64)]) -> Option<Vec<f64>> {
+    use clarabel::algebra::CscMatrix;
+    use clarabel::solver::{
+        DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+    };
+    let n = x.len();
+    // upper triangle of a, column by column
+    let mut colptr = vec![0usize];
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    for c in 0..n {
+        for r in 0..=c {
+            rowval.push(r);
+            nzval.push(a[(r, c)]);
+        }
+        colptr.push(rowval.len());
+    }
+    let p = CscMatrix::new(n, n, colptr, rowval, nzval);
+    // finite bounds as rows: d_j <= hi - x_j and -d_j <= x_j - lo
+    let mut rows: Vec<(usize, f64, f64)> = Vec::new();
+    for (j, (lo, hi)) in bounds.iter().enumerate() {
+        if hi.is_finite() {
+            rows.push((j, 1.0, hi - x[j]));
+        }
+        if lo.is_finite() {
+            rows.push((j, -1.0, x[j] - lo));
+        }
+    }
+    let m = rows.len();
+    let mut colptr = vec![0usize; n + 1];
+    let mut entries: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    for (r, (j, s, _)) in rows.iter().enumerate() {
+        entries[*j].push((r, *s));
+    }
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    for (j, col) in entries.iter().enumerate() {
+        for (r, v) in col {
+            rowval.push(*r);
+            nzval.push(*v);
+        }
+        colptr[j + 1] = rowval.len();
+    }
+    let amat = CscMatrix::new(m, n, colptr, rowval, nzval);
+    let b: Vec<f64> = rows.iter().map(|r| r.2.max(0.0)).collect();
+    let q: Vec<f64> = g.iter().copied().collect();
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .build()
+        .ok()?;
+    let cones = [SupportedConeT::NonnegativeConeT(m)];
+    let mut solver = DefaultSolver::new(&p, &q, &amat, &b, &cones, settings).ok()?;
+    solver.solve();
+    match solver.solution.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {
+            // clip the interior-point solution onto the box exactly
+            Some(
+                solver
+                    .solution
+                    .x
+                    .iter()
+                    .zip(x)
+                    .zip(bounds)
+                    .map(|((d, x), (lo, hi))| (x + d).clamp(*lo, *hi) - x)
+                    .collect(),
+            )
+        }
+        _ => None,
+    }
+}
