@@ -78,7 +78,50 @@ pub enum Command {
     /// The servo rig: Dynamixel 2.0 motors on a serial port, or an emulated bus.
     #[command(subcommand)]
     Hw(HwCommand),
+    /// Where a model and a recording disagree, which left-out physics explains it,
+    /// fitted and checked on held-out rows.
+    #[command(after_help = DIAGNOSE_HELP)]
+    Diagnose(crate::diagnose::DiagnoseArgs),
+    /// Fits the parameters of named effects (no search), e.g. a clearance profile or
+    /// the stiffness from hung weights.
+    #[command(after_help = CALIBRATE_HELP)]
+    Calibrate(crate::diagnose::CalibrateArgs),
+    /// Mean and largest tip error per run for one or more models (the seed's Table 2).
+    #[command(after_help = EVALUATE_HELP)]
+    Evaluate(crate::diagnose::EvaluateArgs),
 }
+
+const DIAGNOSE_HELP: &str = "\
+Example:
+  ctr-cli diagnose --robot data/robots/liu2023.toml --recording data/examples/liu2023-recording.csv \\
+      --report report.json --out fitted.toml --plots plots/
+
+It prints where the error sits, the effects the model leaves out (of torsion, friction,
+clearance, gravity, registration, joint_offset, stiffness, precurvature, latency,
+sensor_offset) with their fitted values and the error before and after on held-out rows,
+and whether what is left is measurement noise. --report writes the JSON report of
+shared/spec/formats.md (with this project's additions: noise, split, located, tried),
+--out the fitted model as a robot file `ctr-cli fk` reads as is.
+
+Exit status: 0 success (also when nothing is found), 2 bad input.";
+
+const CALIBRATE_HELP: &str = "\
+Examples:
+  ctr-cli calibrate --robot robot.toml --recording turns.csv --fit clearance --out fitted.toml
+  ctr-cli calibrate --robot robot.toml --recording weights.csv --fit stiffness
+
+A recording with fx_n,fy_n,fz_n columns (known tip forces in W, N, e.g. hung weights)
+identifies the bending stiffness from the tip deflections.
+
+Exit status: 0 success, 2 bad input.";
+
+const EVALUATE_HELP: &str = "\
+Example:
+  ctr-cli evaluate --robot robot.toml --robot fitted.toml --recording rec.csv
+
+Prints one row per run (and `all`) with each model's mean and largest tip error, mm.
+
+Exit status: 0 success, 2 bad input.";
 
 const HW_EXAMPLE: &str = "\
 Example (the robot file needs an [actuation] section; `ctr-cli hw emulate` in another

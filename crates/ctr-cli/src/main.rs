@@ -6,7 +6,9 @@
 //! or usage. Every error is one line on stderr.
 
 mod cli;
+mod diagnose;
 mod hw;
+mod plots;
 mod progress;
 
 use clap::Parser;
@@ -83,6 +85,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
         Command::Fk(args) => fk(args),
         Command::Ik(args) => ik(args),
         Command::Hw(command) => hw::run(command),
+        Command::Diagnose(args) => diagnose::diagnose(args),
+        Command::Calibrate(args) => diagnose::calibrate(args),
+        Command::Evaluate(args) => diagnose::evaluate(args),
     }
 }
 

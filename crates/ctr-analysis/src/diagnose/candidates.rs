@@ -16,8 +16,8 @@
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
 
 use crate::formats::{
-    Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
-    SensorOffset, Stiffness,
+    Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration, SensorOffset,
+    Stiffness,
 };
 use crate::simulate::ModelSpec;
 use ctr_core::Model;
@@ -335,45 +335,6 @@ impl EffectId {
                     offset_mm: [x[0], x[1], x[2]],
                 })
             }
-        }
-    }
-
-    /// Names and units of the parameters, for the report (`max_deflection_deg_1`, ...).
-    pub(crate) fn param_names(self, n: usize) -> Vec<String> {
-        let pairs = n.saturating_sub(1);
-        let per = |name: &str, count: usize| -> Vec<String> {
-            (1..=count).map(|i| format!("{name}_{i}")).collect()
-        };
-        match self {
-            EffectId::Torsion => vec![],
-            EffectId::Friction => {
-                let mut v = per("rotation_play_half_width_deg", pairs);
-                v.extend(per("feed_play_half_width_mm", n));
-                v
-            }
-            EffectId::Clearance => (1..=pairs)
-                .flat_map(|i| [format!("max_deflection_deg_{i}"), format!("peak_deg_{i}")])
-                .collect(),
-            EffectId::Gravity => vec!["g_x_m_s2".into(), "g_y_m_s2".into(), "g_z_m_s2".into()],
-            EffectId::Registration => [
-                "translation_x_mm",
-                "translation_y_mm",
-                "translation_z_mm",
-                "rotation_x_deg",
-                "rotation_y_deg",
-                "rotation_z_deg",
-            ]
-            .map(String::from)
-            .to_vec(),
-            EffectId::JointOffset => {
-                let mut v = per("feed_offset_mm", n);
-                v.extend(per("rotation_offset_deg", n));
-                v
-            }
-            EffectId::Stiffness => per("ln_stiffness_factor", n),
-            EffectId::Precurvature => per("ln_radius_factor", n),
-            EffectId::Latency => vec!["tau_s".into()],
-            EffectId::SensorOffset => vec!["x_mm".into(), "y_mm".into(), "z_mm".into()],
         }
     }
 }

@@ -51,10 +51,6 @@ impl Problem<'_> {
         self.base.robot.n_tubes()
     }
 
-    pub fn n_params(&self) -> usize {
-        self.blocks.iter().map(|b| b.n_params(self.n_tubes())).sum()
-    }
-
     /// The model with parameters `x`.
     pub fn model(&self, x: &[f64]) -> ModelSpec {
         let mut m = self.base.clone();
@@ -284,7 +280,12 @@ impl Problem<'_> {
 
 /// The damped step `a d = -g`, inside the bounds (a box QP when the plain step leaves
 /// them).
-fn solve_step(a: &DMatrix<f64>, g: &DVector<f64>, x: &[f64], bounds: &[(f64, f64)]) -> Option<Vec<f64>> {
+fn solve_step(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    x: &[f64],
+    bounds: &[(f64, f64)],
+) -> Option<Vec<f64>> {
     let d = a.clone().cholesky()?.solve(&(-g));
     let inside = d
         .iter()
@@ -298,7 +299,12 @@ fn solve_step(a: &DMatrix<f64>, g: &DVector<f64>, x: &[f64], bounds: &[(f64, f64
 }
 
 /// `min 1/2 d^T a d + g^T d` subject to `lo - x <= d <= hi - x`, by clarabel.
-fn box_qp(a: &DMatrix<f64>, g: &DVector<f64>, x: &[f64], bounds: &[(f64, f64)]) -> Option<Vec<f64>> {
+fn box_qp(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    x: &[f64],
+    bounds: &[(f64, f64)],
+) -> Option<Vec<f64>> {
     use clarabel::algebra::CscMatrix;
     use clarabel::solver::{
         DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,

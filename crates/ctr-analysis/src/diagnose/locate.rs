@@ -204,7 +204,10 @@ pub fn locate(rec: &Recording, e: &[[f64; 3]], mask: &[bool], tips: &[[f64; 3]])
             100.0 * off
         ),
     });
-    let size: Vec<f64> = e.iter().map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).collect();
+    let size: Vec<f64> = e
+        .iter()
+        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        .collect();
     for f in features(rec) {
         if f.periodic {
             let c: Vec<f64> = f.values.iter().map(|v| v.to_radians().cos()).collect();
@@ -277,8 +280,14 @@ pub fn locate(rec: &Recording, e: &[[f64; 3]], mask: &[bool], tips: &[[f64; 3]])
         }
     }
     // workspace position
-    let px: Vec<Vec<f64>> = (0..3).map(|a| tips.iter().map(|p| p[a]).collect()).collect();
-    let ws = explained(e, &[ones, px[0].clone(), px[1].clone(), px[2].clone()], mask);
+    let px: Vec<Vec<f64>> = (0..3)
+        .map(|a| tips.iter().map(|p| p[a]).collect())
+        .collect();
+    let ws = explained(
+        e,
+        &[ones, px[0].clone(), px[1].clone(), px[2].clone()],
+        mask,
+    );
     out.push(Statement {
         kind: "workspace".into(),
         feature: "tip position".into(),

@@ -415,7 +415,11 @@ fn not_applicable(effect: EffectId, model: &ModelSpec, rec: &Recording) -> Optio
 /// }
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub fn diagnose(model: &ModelSpec, rec: &Recording, opt: &Options) -> Result<Diagnosis, DiagnoseError> {
+pub fn diagnose(
+    model: &ModelSpec,
+    rec: &Recording,
+    opt: &Options,
+) -> Result<Diagnosis, DiagnoseError> {
     let (held, split_method) = split(rec, &opt.holdout)?;
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
     let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
@@ -594,7 +598,18 @@ pub fn diagnose(model: &ModelSpec, rec: &Recording, opt: &Options) -> Result<Dia
         current_e = e;
         let _ = round;
     }
-    let final_pred = predict(&current, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    let final_pred =
+        predict(&current, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    // what the explained model leaves is closer to white: estimate the noise again there
+    let noise = {
+        let again = estimate_noise(rec, &current_e);
+        if again.sigma_mm_per_axis < noise.sigma_mm_per_axis || !noise.sigma_mm_per_axis.is_finite()
+        {
+            again
+        } else {
+            noise
+        }
+    };
     let unexplained = if current_fig.rms_mm <= NOISE_TOLERANCE * noise.rms_mm {
         format!(
             "residual is consistent with measurement noise: {:.3} mm RMS on the fit rows, \
@@ -773,4 +788,214 @@ fn explain(c: EffectId, m: &ModelSpec) -> String {
             )
         }
     }
+}
+
+/// Fits the parameters of the named effects together, without the search: the
+/// `calibrate` of a lab that knows what to identify (a clearance profile, the stiffness
+/// from tip deflections under known hung weights recorded as `fx_n,fy_n,fz_n`, ...).
+/// Effects the model already has are refitted from their values. The report has one
+/// finding per effect (before: the user model; after: all fitted).
+///
+/// ```no_run
+/// use ctr_analysis::{diagnose::{calibrate, EffectId, Options}, formats::{Recording, RobotSpec}, simulate::ModelSpec};
+/// use std::path::Path;
+/// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
+/// let rec = Recording::from_path(Path::new("weights.csv"), spec.robot.n_tubes())?;
+/// let d = calibrate(&ModelSpec::from_spec(&spec), &rec, &[EffectId::Stiffness], &Options::default())?;
+/// println!("{}", d.report.findings[0].explanation);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn calibrate(
+    model: &ModelSpec,
+    rec: &Recording,
+    effects: &[EffectId],
+    opt: &Options,
+) -> Result<Diagnosis, DiagnoseError> {
+    let (held, split_method) = split(rec, &opt.holdout)?;
+    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+    let n = model.robot.n_tubes();
+    let base = predict(model, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    let e0 = errors(rec, &base.p);
+    let baseline = figures(&e0, &held);
+    let noise = estimate_noise(rec, &e0);
+    let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
+    let located = locate::locate(rec, &e0, &fit_mask, &base.p);
+    for &c in effects {
+        if let Some(note) = not_applicable(c, model, rec) {
+            return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
+        }
+    }
+    let mut blocks: Vec<EffectId> = Vec::new();
+    for &c in effects {
+        if !blocks.contains(&c) {
+            blocks.push(c);
+        }
+    }
+    let problem = Problem {
+        base: model.clone(),
+        blocks: blocks.clone(),
+        rec,
+        runs: all_runs.clone(),
+        rows: fit_rows.clone(),
+        huber_mm: if noise.sigma_mm_per_axis > 0.0 {
+            HUBER_SIGMAS * noise.sigma_mm_per_axis
+        } else {
+            f64::INFINITY
+        },
+        threads: threads(opt.threads),
+    };
+    let period = sample_period(rec);
+    // start every block from the model's values (or its first start when absent); a
+    // block with several starts tries each, the others held at their first
+    let first: Vec<Vec<f64>> = blocks
+        .iter()
+        .map(|b| {
+            if b.present_in(model) {
+                b.read(model)
+            } else {
+                b.starts(n, period).swap_remove(0)
+            }
+        })
+        .collect();
+    let mut starts = vec![first.concat()];
+    for (i, b) in blocks.iter().enumerate() {
+        if b.present_in(model) {
+            continue;
+        }
+        for alt in b.starts(n, period).into_iter().skip(1) {
+            let mut x = first.clone();
+            x[i] = alt;
+            starts.push(x.concat());
+        }
+    }
+    let fitted = starts
+        .iter()
+        .filter_map(|x0| problem.fit(x0, MAX_FIT_ITERATIONS))
+        .min_by(|a, b| a.cost.total_cmp(&b.cost))
+        .ok_or_else(|| {
+            DiagnoseError::Model("the model cannot be simulated with these effects".into())
+        })?;
+    let m = problem.model(&fitted.x);
+    let pred = predict(&m, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    let e = errors(rec, &pred.p);
+    let fig = figures(&e, &held);
+    let change: Vec<[f64; 3]> = e
+        .iter()
+        .zip(&e0)
+        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+        .collect();
+    let all_mask = vec![true; rec.rows.len()];
+    let where_ = locate::summary(&locate::locate(rec, &change, &all_mask, &pred.p));
+    let findings = blocks
+        .iter()
+        .map(|&c| Finding {
+            effect: c,
+            explanation: explain(c, &m),
+            where_: where_.clone(),
+            parameters: parameters(c, &m),
+            rms_mm_before: baseline.rms_mm,
+            rms_mm_after: fig.rms_mm,
+            heldout_rms_mm_before: baseline.heldout_rms_mm,
+            heldout_rms_mm_after: fig.heldout_rms_mm,
+        })
+        .collect();
+    let noise = {
+        let again = estimate_noise(rec, &e);
+        if again.sigma_mm_per_axis < noise.sigma_mm_per_axis {
+            again
+        } else {
+            noise
+        }
+    };
+    let unexplained = if fig.rms_mm <= NOISE_TOLERANCE * noise.rms_mm {
+        format!(
+            "residual is consistent with measurement noise: {:.3} mm RMS on the fit rows, \
+             {:.3} mm held out, against {:.3} mm of noise estimated from the data",
+            fig.rms_mm, fig.heldout_rms_mm, noise.rms_mm
+        )
+    } else {
+        format!(
+            "{:.3} mm RMS is left ({:.3} mm held out), above the {:.3} mm of noise estimated \
+             from the data; `ctr-cli diagnose` searches the other effects",
+            fig.rms_mm, fig.heldout_rms_mm, noise.rms_mm
+        )
+    };
+    Ok(Diagnosis {
+        report: Report {
+            baseline,
+            findings,
+            final_: fig,
+            unexplained,
+            noise,
+            split: Split {
+                method: split_method,
+                fit_rows: fit_rows.len(),
+                heldout_rows: rec.rows.len() - fit_rows.len(),
+            },
+            located,
+            tried: Vec::new(),
+            failed_rows: pred.failed,
+        },
+        fitted: m,
+    })
+}
+
+/// Tip errors of one run under several models (the seed paper's Table 2).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunErrors {
+    /// The run's label (`all` for the whole recording).
+    pub run: String,
+    /// Rows in the run.
+    pub rows: usize,
+    /// Mean tip error per model, mm.
+    pub mean_mm: Vec<f64>,
+    /// Largest tip error per model, mm.
+    pub max_mm: Vec<f64>,
+}
+
+/// Mean and largest tip error per run (and over all rows, last) for each model.
+///
+/// ```
+/// use ctr_analysis::{diagnose::evaluate, formats::{Recording, RobotSpec}, simulate::ModelSpec};
+/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+/// let rec = Recording::read("run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\na,50,0,0,0,51\n".as_bytes(), "rec.csv", 1)?;
+/// let table = evaluate(&[ModelSpec::from_spec(&spec)], &rec).unwrap();
+/// assert_eq!(table[0].run, "a");
+/// assert!((table[0].mean_mm[0] - 1.0).abs() < 1e-12);
+/// assert_eq!(table.last().unwrap().run, "all");
+/// # Ok::<(), ctr_analysis::Error>(())
+/// ```
+pub fn evaluate(models: &[ModelSpec], rec: &Recording) -> Result<Vec<RunErrors>, DiagnoseError> {
+    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let mut sizes = Vec::with_capacity(models.len());
+    for m in models {
+        let p = predict(m, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+        sizes.push(
+            errors(rec, &p.p)
+                .iter()
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .collect::<Vec<f64>>(),
+        );
+    }
+    let row = |label: &str, range: std::ops::Range<usize>| RunErrors {
+        run: label.to_owned(),
+        rows: range.len(),
+        mean_mm: sizes
+            .iter()
+            .map(|s| s[range.clone()].iter().sum::<f64>() / range.len() as f64)
+            .collect(),
+        max_mm: sizes
+            .iter()
+            .map(|s| s[range.clone()].iter().copied().fold(0.0, f64::max))
+            .collect(),
+    };
+    let mut out: Vec<RunErrors> = rec
+        .runs
+        .iter()
+        .map(|r| row(&r.label, r.rows.clone()))
+        .collect();
+    out.push(row("all", 0..rec.rows.len()));
+    Ok(out)
 }

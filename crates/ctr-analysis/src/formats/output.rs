@@ -38,6 +38,18 @@ pub(crate) fn output_dir(path: &Path) -> Result<PathBuf, Error> {
 }
 
 impl AtomicFile {
+    /// Checks, before any work, that an output can be created at `path` (its directory
+    /// exists and it is not a directory).
+    ///
+    /// ```
+    /// use ctr_analysis::formats::AtomicFile;
+    /// let err = AtomicFile::check_path("/nonexistent/out.json".as_ref()).unwrap_err();
+    /// assert_eq!(err.to_string(), "/nonexistent/out.json: directory /nonexistent does not exist");
+    /// ```
+    pub fn check_path(path: &Path) -> Result<(), Error> {
+        output_dir(path).map(|_| ())
+    }
+
     /// Creates the temporary file in `path`'s directory (which must exist).
     pub fn create(path: &Path) -> Result<AtomicFile, Error> {
         let file = path.display().to_string();

@@ -1,0 +1,281 @@
+//! `ctr-cli diagnose`, `ctr-cli calibrate` and `ctr-cli evaluate`: a robot file and a
+//! recording in, the mismatch report, the fitted robot file and plots out. The numerics
+//! are `ctr_analysis::diagnose`'s; this module reads, prints and writes.
+
+use crate::plots;
+use crate::Failure;
+use ctr_analysis::diagnose::{self, Diagnosis, EffectId, Holdout, Options, Report};
+use ctr_analysis::formats::{AtomicFile, Recording, RobotSpec};
+use ctr_analysis::simulate::ModelSpec;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Options of `ctr-cli diagnose`.
+#[derive(Debug, clap::Args)]
+pub struct DiagnoseArgs {
+    /// The model to check: a robot file (its [model] kind and [model.effects]).
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot: PathBuf,
+    /// The recording: joint columns, x_mm,y_mm,z_mm, optionally t_s and run.
+    #[arg(long, value_name = "REC.csv")]
+    pub recording: PathBuf,
+    /// Write the mismatch report (JSON) here.
+    #[arg(long, value_name = "REPORT.json")]
+    pub report: Option<PathBuf>,
+    /// Write the fitted model here, as a robot file `ctr-cli fk` reads as is.
+    #[arg(long = "out", value_name = "FITTED.toml")]
+    pub out: Option<PathBuf>,
+    /// Write before/after plots (SVG) into this directory (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+    /// How rows are held out: `blocks:K` (each run in contiguous blocks, one in K held
+    /// out; default blocks:4) or `runs:LABEL,LABEL` (those runs held out whole).
+    #[arg(long, value_name = "SPLIT", value_parser = parse_holdout)]
+    pub holdout: Option<Holdout>,
+    /// Only try these effects (comma separated contract ids; default: all ten).
+    #[arg(long, value_name = "IDS", value_delimiter = ',', value_parser = parse_effect)]
+    pub effects: Option<Vec<EffectId>>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+}
+
+/// Options of `ctr-cli calibrate`.
+#[derive(Debug, clap::Args)]
+pub struct CalibrateArgs {
+    /// The model to calibrate: a robot file.
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot: PathBuf,
+    /// The recording (with fx_n,fy_n,fz_n for known tip loads, e.g. hung weights).
+    #[arg(long, value_name = "REC.csv")]
+    pub recording: PathBuf,
+    /// The effects whose parameters are fitted, comma separated contract ids
+    /// (e.g. `clearance` or `stiffness`).
+    #[arg(long, value_name = "IDS", value_delimiter = ',', required = true, value_parser = parse_effect)]
+    pub fit: Vec<EffectId>,
+    /// Write the report (JSON) here.
+    #[arg(long, value_name = "REPORT.json")]
+    pub report: Option<PathBuf>,
+    /// Write the calibrated model here, as a robot file.
+    #[arg(long = "out", value_name = "FITTED.toml")]
+    pub out: Option<PathBuf>,
+    /// How rows are held out (as for diagnose).
+    #[arg(long, value_name = "SPLIT", value_parser = parse_holdout)]
+    pub holdout: Option<Holdout>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+}
+
+/// Options of `ctr-cli evaluate`.
+#[derive(Debug, clap::Args)]
+pub struct EvaluateArgs {
+    /// Models to compare (repeat the option); all must have the recording's tube count.
+    #[arg(long, value_name = "ROBOT.toml", required = true)]
+    pub robot: Vec<PathBuf>,
+    /// The recording.
+    #[arg(long, value_name = "REC.csv")]
+    pub recording: PathBuf,
+}
+
+fn parse_effect(s: &str) -> Result<EffectId, String> {
+    EffectId::parse(s.trim()).ok_or_else(|| {
+        format!(
+            "unknown effect {s:?}; the contract's ids are {}",
+            EffectId::ALL.map(EffectId::as_str).join(", ")
+        )
+    })
+}
+
+fn parse_holdout(s: &str) -> Result<Holdout, String> {
+    let want = "wanted blocks:K (K >= 2) or runs:LABEL[,LABEL...]";
+    match s.split_once(':') {
+        Some(("blocks", k)) => match k.parse::<usize>() {
+            Ok(every) if every >= 2 => Ok(Holdout::Blocks { every }),
+            _ => Err(format!("{s:?}: {want}")),
+        },
+        Some(("runs", labels)) if !labels.trim().is_empty() => Ok(Holdout::Runs(
+            labels.split(',').map(|l| l.trim().to_owned()).collect(),
+        )),
+        _ => Err(format!("{s:?}: {want}")),
+    }
+}
+
+fn threads(t: Option<u16>) -> usize {
+    t.map_or(0, usize::from)
+}
+
+fn load(robot: &Path, recording: &Path) -> Result<(RobotSpec, Recording), Failure> {
+    let spec = RobotSpec::from_path(robot).map_err(|e| Failure::Input(e.to_string()))?;
+    let rec = Recording::from_path(recording, spec.robot.n_tubes())
+        .map_err(|e| Failure::Input(e.to_string()))?;
+    Ok((spec, rec))
+}
+
+/// Checks that every output can be written before the work starts.
+fn check_outputs(paths: &[&Option<PathBuf>]) -> Result<(), Failure> {
+    for p in paths.iter().copied().flatten() {
+        AtomicFile::check_path(p).map_err(|e| Failure::Input(e.to_string()))?;
+    }
+    Ok(())
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), Failure> {
+    let mut f = AtomicFile::create(path).map_err(|e| Failure::Input(e.to_string()))?;
+    f.write_all(text.as_bytes())
+        .map_err(|e| Failure::Input(format!("{}: cannot write: {e}", path.display())))?;
+    f.commit().map_err(|e| Failure::Input(e.to_string()))
+}
+
+fn write_outputs(
+    spec: &RobotSpec,
+    d: &Diagnosis,
+    report: &Option<PathBuf>,
+    out: &Option<PathBuf>,
+) -> Result<(), Failure> {
+    if let Some(path) = report {
+        let json = serde_json::to_string_pretty(&d.report).expect("a report serializes");
+        write_text(path, &(json + "\n"))?;
+    }
+    if let Some(path) = out {
+        let fitted = RobotSpec {
+            model: d.fitted.model,
+            effects: d.fitted.effects.clone(),
+            ..spec.clone()
+        };
+        let header = format!(
+            "# Fitted by ctr-cli from {}: {}\n",
+            spec.name.as_deref().unwrap_or("the robot file"),
+            if d.report.findings.is_empty() {
+                "no effect added".to_owned()
+            } else {
+                d.report
+                    .findings
+                    .iter()
+                    .map(|f| f.effect.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        );
+        write_text(path, &(header + &fitted.to_toml()))?;
+    }
+    Ok(())
+}
+
+/// The plain-language summary printed on stdout.
+pub fn summary(report: &Report, recording: &str) -> String {
+    let mut s = format!(
+        "{recording}: the model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out \
+         rows, largest {:.3} mm).\n",
+        report.baseline.rms_mm, report.baseline.heldout_rms_mm, report.baseline.max_mm
+    );
+    let patterns: Vec<&str> = report
+        .located
+        .iter()
+        .filter(|l| l.kind != "run")
+        .take(3)
+        .map(|l| l.text.as_str())
+        .collect();
+    if !patterns.is_empty() {
+        s += &format!("Where: the error {}.\n", patterns.join("; "));
+    }
+    if report.findings.is_empty() {
+        s += "No left-out effect explains part of it.\n";
+    }
+    for f in &report.findings {
+        s += &format!(
+            "{}\n  where: {}\n  held-out RMS {:.3} -> {:.3} mm (fit rows {:.3} -> {:.3} mm)\n",
+            f.explanation,
+            f.where_,
+            f.heldout_rms_mm_before,
+            f.heldout_rms_mm_after,
+            f.rms_mm_before,
+            f.rms_mm_after
+        );
+    }
+    s += &format!(
+        "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
+        report.final_.rms_mm, report.final_.heldout_rms_mm, report.unexplained
+    );
+    s
+}
+
+/// `ctr-cli diagnose`.
+pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
+    check_outputs(&[&args.report, &args.out])?;
+    let (spec, rec) = load(&args.robot, &args.recording)?;
+    let options = Options {
+        holdout: args.holdout.unwrap_or_default(),
+        candidates: args.effects.unwrap_or_else(|| EffectId::ALL.to_vec()),
+        threads: threads(args.threads),
+    };
+    let model = ModelSpec::from_spec(&spec);
+    let d = diagnose::diagnose(&model, &rec, &options)
+        .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
+    write_outputs(&spec, &d, &args.report, &args.out)?;
+    if let Some(dir) = &args.plots {
+        plots::write_all(dir, &rec, &model, &d).map_err(Failure::Input)?;
+    }
+    print!("{}", summary(&d.report, &rec.file));
+    Ok(())
+}
+
+/// `ctr-cli calibrate`.
+pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
+    check_outputs(&[&args.report, &args.out])?;
+    let (spec, rec) = load(&args.robot, &args.recording)?;
+    let options = Options {
+        holdout: args.holdout.unwrap_or_default(),
+        threads: threads(args.threads),
+        ..Options::default()
+    };
+    let d = diagnose::calibrate(&ModelSpec::from_spec(&spec), &rec, &args.fit, &options)
+        .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
+    write_outputs(&spec, &d, &args.report, &args.out)?;
+    print!("{}", summary(&d.report, &rec.file));
+    Ok(())
+}
+
+/// `ctr-cli evaluate`.
+pub fn evaluate(args: EvaluateArgs) -> Result<(), Failure> {
+    let mut models = Vec::new();
+    let mut names = Vec::new();
+    let mut n_tubes = None;
+    for path in &args.robot {
+        let spec = RobotSpec::from_path(path).map_err(|e| Failure::Input(e.to_string()))?;
+        let n = spec.robot.n_tubes();
+        if let Some(first) = n_tubes {
+            if first != n {
+                return Err(Failure::Input(format!(
+                    "{}: {n} tubes, but the first robot has {first}; models compared on one \
+                     recording must have the same tubes",
+                    path.display()
+                )));
+            }
+        }
+        n_tubes = Some(n);
+        models.push(ModelSpec::from_spec(&spec));
+        names.push(path.file_name().map_or_else(
+            || path.display().to_string(),
+            |f| f.to_string_lossy().into_owned(),
+        ));
+    }
+    let rec = Recording::from_path(&args.recording, n_tubes.unwrap_or(1))
+        .map_err(|e| Failure::Input(e.to_string()))?;
+    let table = diagnose::evaluate(&models, &rec)
+        .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
+    let width = table.iter().map(|r| r.run.len()).max().unwrap_or(3).max(3);
+    let mut head = format!("{:width$}  {:>5}", "run", "rows");
+    for n in &names {
+        head += &format!("  {:>22}", format!("{n} mean/max mm"));
+    }
+    println!("{head}");
+    for r in &table {
+        let mut line = format!("{:width$}  {:>5}", r.run, r.rows);
+        for (mean, max) in r.mean_mm.iter().zip(&r.max_mm) {
+            line += &format!("  {:>22}", format!("{mean:.3} / {max:.3}"));
+        }
+        println!("{line}");
+    }
+    Ok(())
+}
