@@ -75,6 +75,20 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
             )
         })
     });
+    let mut with_jacobian = Solver::default();
+    let mut kj = 0;
+    group.bench_function("torsion+jacobian/warm", |b| {
+        b.iter(|| {
+            kj = (kj + 1) % path.len();
+            if kj == 0 {
+                with_jacobian.reset();
+            }
+            let (sol, jac) = with_jacobian
+                .solve_jacobian(&robot, &path[kj], Model::Torsion)
+                .unwrap();
+            black_box((sol.tip.position, jac.feed[0]))
+        })
+    });
     let cold = Solver::default();
     let mut j = 0;
     group.bench_function("torsion/cold", |b| {

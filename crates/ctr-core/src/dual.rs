@@ -28,6 +28,16 @@ pub trait Num<T: Real>:
     fn sqrt(self) -> Self;
     /// Sine and cosine.
     fn sin_cos(self) -> (Self, Self);
+    /// `f(self)` from the value `f(re)` and the derivative `f'(re)` of a scalar function
+    /// `f` (the chain rule): evaluates `f` once on plain numbers.
+    ///
+    /// ```
+    /// use ctr_core::dual::{Dual, Num};
+    /// let x = Dual::<f64, 1>::var(2.0, 0);
+    /// let cube = x.chain(8.0, 12.0); // x^3 and 3 x^2 at 2
+    /// assert_eq!((cube.re, cube.eps[0]), (8.0, 12.0));
+    /// ```
+    fn chain(self, value: T, derivative: T) -> Self;
 }
 
 impl<T: Real> Num<T> for T {
@@ -46,6 +56,10 @@ impl<T: Real> Num<T> for T {
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
         crate::se3::sin_cos(self)
+    }
+    #[inline(always)]
+    fn chain(self, value: T, _derivative: T) -> Self {
+        value
     }
 }
 
@@ -81,13 +95,6 @@ impl<T: Real, const K: usize> Dual<T, K> {
         }
         Dual { re: v, eps }
     }
-    #[inline(always)]
-    fn chain(self, re: T, d: T) -> Self {
-        Dual {
-            re,
-            eps: self.eps.map(|e| e * d),
-        }
-    }
 }
 
 impl<T: Real, const K: usize> Num<T> for Dual<T, K> {
@@ -111,6 +118,13 @@ impl<T: Real, const K: usize> Num<T> for Dual<T, K> {
     fn sin_cos(self) -> (Self, Self) {
         let (s, co) = crate::se3::sin_cos(self.re);
         (self.chain(s, co), self.chain(co, -s))
+    }
+    #[inline(always)]
+    fn chain(self, re: T, d: T) -> Self {
+        Dual {
+            re,
+            eps: self.eps.map(|e| e * d),
+        }
     }
 }
 

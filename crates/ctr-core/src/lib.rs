@@ -34,6 +34,7 @@ pub use nalgebra;
 pub mod dual;
 pub mod effects;
 pub mod friction;
+pub mod jacobian;
 pub mod joints;
 pub mod loads;
 mod real;
@@ -43,6 +44,7 @@ mod sections;
 pub mod solver;
 pub mod twist;
 
+pub use jacobian::{JointJacobian, ParameterJacobian};
 pub use joints::{JointError, JointKind, Joints};
 pub use loads::{Gravity, LoadError, Loads};
 pub use real::Real;

@@ -1,5 +1,5 @@
 //! A solve allocates nothing: a counting global allocator sees zero allocations during
-//! warm, cold, backbone, rigid and f32 solves (the bare-metal build in `tests/no-alloc`
+//! warm, cold, backbone, rigid, Jacobian, loaded and f32 solves (the bare-metal build in `tests/no-alloc`
 //! proves the same at link time).
 #![allow(unsafe_code)] // a GlobalAlloc impl is unsafe by definition
 
@@ -90,6 +90,14 @@ fn solves_allocate_nothing() {
                 .tip
                 .position
                 .x;
+            let (sol, jac) = solver3
+                .solve_jacobian(&robot3, &r3.q, Model::Torsion)
+                .unwrap();
+            checksum += sol.tip.position.x + jac.feed[2][0] + jac.rotation[0][1];
+            let (_, pj) = solver2
+                .solve_parameter_jacobian(&robot2, &r2.q, Model::Rigid)
+                .unwrap();
+            checksum += pj.curvature[1][0];
             checksum += solver3
                 .solve_loaded(&robot3, &r3.q, &gravity)
                 .unwrap()

@@ -56,6 +56,12 @@ fn solve3<T: ctr_core::Real>(x: T) -> T {
     if let Ok(sol) = solver.solve_loaded(&robot, &q, &loads) {
         sum += sol.tip.position.z;
     }
+    if let Ok((sol, jac)) = solver.solve_jacobian(&robot, &q, Model::Torsion) {
+        sum += sol.tip.position.x + jac.feed[0][0] + jac.rotation[2][5];
+    }
+    if let Ok((_, jac)) = solver.solve_parameter_jacobian(&robot, &q, Model::Torsion) {
+        sum += jac.curvature[1][1];
+    }
     sum
 }
 

@@ -1,0 +1,209 @@
+//! Jacobians from integrated sensitivities against central finite differences of the
+//! solver itself, on the shared robots at random configurations inside the manifest's
+//! ranges, and the compliance against Euler-Bernoulli.
+use ctr_core::nalgebra::{Matrix3, Vector3, Vector6};
+use ctr_core::{Joints, Model, Robot, Solver, SolverConfig, Status, TubeParams};
+use ctr_suite::*;
+
+/// Largest accepted relative error of a Jacobian column (norm of the difference over the
+/// norm of the finite difference, position and orientation blocks apart).
+const REL_TOL: f64 = 1e-6;
+/// Central-difference step: mm for feeds, rad for rotations, unitless for scale factors.
+/// Truncation error ~ h^2/6 f''' (< 1e-9 relative here); the solver's own noise at the
+/// tight tolerances below (~1e-13 mm) over 2h stays below 1e-9 too.
+const FD_STEP: f64 = 1e-4;
+/// Configurations per robot and model.
+const CONFIGS: usize = 6;
+
+/// A solver converged to machine precision, so that finite differences of it are exact
+/// to ~1e-10.
+fn tight_solver<const N: usize>() -> Solver<f64, N> {
+    Solver::new(SolverConfig {
+        step_tolerance_per_mm: 1e-13,
+        residual_tolerance_per_mm: 1e-14,
+        ..Default::default()
+    })
+}
+
+/// xorshift64*: deterministic pseudo-random numbers in [0, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Random joints inside the manifest's valid ranges for `name`.
+fn random_joints<const N: usize>(name: &str, rng: &mut Rng) -> Joints<f64, N> {
+    let text = std::fs::read_to_string(shared_data().join("manifest.json")).unwrap();
+    let m: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let ranges = &m["robots"][name]["valid_ranges"];
+    let mut s = [0.0; N];
+    let mut theta = [0.0; N];
+    let mut acc = 0.0;
+    for i in 0..N {
+        let lo = ranges["increments"][i][0].as_f64().unwrap();
+        let hi = ranges["increments"][i][1].as_f64().unwrap();
+        acc += lo + (hi - lo) * rng.next();
+        s[i] = acc;
+        let tlo = ranges["theta_deg"][0].as_f64().unwrap();
+        let thi = ranges["theta_deg"][1].as_f64().unwrap();
+        theta[i] = tlo + (thi - tlo) * rng.next();
+    }
+    Joints::from_mm_deg(s, theta)
+}
+
+/// `(dp, omega)` of a central difference between two tip frames over `2h`, omega the
+/// spatial angular velocity `vee(dR R^T)` at the midpoint frame `r`.
+fn difference(
+    plus: &ctr_core::Frame<f64>,
+    minus: &ctr_core::Frame<f64>,
+    r: &Matrix3<f64>,
+    h: f64,
+) -> Vector6<f64> {
+    let dp = (plus.position - minus.position) / (2.0 * h);
+    let w = (plus.rotation - minus.rotation) / (2.0 * h) * r.transpose();
+    let omega = Vector3::new(
+        w[(2, 1)] - w[(1, 2)],
+        w[(0, 2)] - w[(2, 0)],
+        w[(1, 0)] - w[(0, 1)],
+    ) * 0.5;
+    Vector6::new(dp.x, dp.y, dp.z, omega.x, omega.y, omega.z)
+}
+
+/// Relative error of a column, position and orientation blocks apart; returns the worse.
+fn relative_error(got: &Vector6<f64>, fd: &Vector6<f64>) -> f64 {
+    let block = |a: usize| {
+        let g = got.fixed_rows::<3>(a);
+        let f = fd.fixed_rows::<3>(a);
+        // an absolute floor for blocks that vanish (e.g. a straight tube's orientation)
+        (g - f).norm() / f.norm().max(1e-9)
+    };
+    block(0).max(block(3))
+}
+
+fn joint_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64 {
+    let robot: Robot<f64, N> = robot::<N>(name);
+    let mut rng = Rng(seed);
+    let mut worst = 0.0_f64;
+    for _ in 0..CONFIGS {
+        let q = random_joints::<N>(name, &mut rng);
+        let mut solver = tight_solver::<N>();
+        let (sol, jac) = solver.solve_jacobian(&robot, &q, model).unwrap();
+        assert_eq!(sol.status, Status::Converged, "{name} {q:?}");
+        for col in 0..2 * N {
+            let shifted = |d: f64| {
+                let mut p = q;
+                if col < N {
+                    p.s_mm[col] += d;
+                } else {
+                    p.theta_rad[col - N] += d;
+                }
+                let s = solver.solve_cold(&robot, &p, model).unwrap();
+                assert_eq!(s.status, Status::Converged);
+                s.tip
+            };
+            let fd = difference(
+                &shifted(FD_STEP),
+                &shifted(-FD_STEP),
+                &sol.tip.rotation,
+                FD_STEP,
+            );
+            let got = jac.column(col).unwrap();
+            let rel = relative_error(&got, &fd);
+            assert!(
+                rel <= REL_TOL,
+                "{name} {model:?} column {col} at {q:?}: relative error {rel:.3e}\n got {got}\n fd {fd}"
+            );
+            worst = worst.max(rel);
+        }
+    }
+    eprintln!("{name} {model:?}: joint Jacobian max relative error {worst:.3e}");
+    worst
+}
+
+#[test]
+fn joint_jacobian_matches_finite_differences() {
+    for model in [Model::Torsion, Model::Rigid] {
+        joint_columns::<2>("liu2023", model, 0x9E37_79B9_7F4A_7C15);
+        joint_columns::<2>("nitinol2", model, 0xD1B5_4A32_D192_ED03);
+        joint_columns::<3>("nitinol3", model, 0x8CB9_2BA7_2F3D_8DD7);
+    }
+}
+
+/// A robot with tube i's E I, G J or precurvature scaled (as explicit overrides).
+fn scaled_robot<const N: usize>(name: &str, which: usize, tube: usize, f: f64) -> Robot<f64, N> {
+    let base: Robot<f64, N> = robot::<N>(name);
+    let mut p: Vec<TubeParams<f64>> = tube_params(name);
+    for (i, t) in p.iter_mut().enumerate() {
+        let b = &base.tubes()[i];
+        t.bending_stiffness_nmm2 = Some(b.bending_stiffness_nmm2());
+        t.torsional_stiffness_nmm2 = Some(b.torsional_stiffness_nmm2());
+    }
+    let t = &mut p[tube];
+    match which {
+        0 => t.bending_stiffness_nmm2 = t.bending_stiffness_nmm2.map(|v| v * f),
+        1 => t.torsional_stiffness_nmm2 = t.torsional_stiffness_nmm2.map(|v| v * f),
+        _ => t.curvature_radius_mm = t.curvature_radius_mm.map(|r| r / f),
+    }
+    Robot::new(p.try_into().unwrap()).unwrap()
+}
+
+fn parameter_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64 {
+    let robot: Robot<f64, N> = robot::<N>(name);
+    let mut rng = Rng(seed);
+    let mut worst = 0.0_f64;
+    for _ in 0..CONFIGS / 2 {
+        let q = random_joints::<N>(name, &mut rng);
+        let mut solver = tight_solver::<N>();
+        let (sol, jac) = solver.solve_parameter_jacobian(&robot, &q, model).unwrap();
+        assert_eq!(sol.status, Status::Converged);
+        for which in 0..3 {
+            for tube in 0..N {
+                let got = [
+                    jac.bending_stiffness,
+                    jac.torsional_stiffness,
+                    jac.curvature,
+                ][which][tube];
+                let tip = |f: f64| {
+                    let r = scaled_robot::<N>(name, which, tube, f);
+                    let s = solver.solve_cold(&r, &q, model).unwrap();
+                    assert_eq!(s.status, Status::Converged);
+                    s.tip
+                };
+                let fd = difference(
+                    &tip(1.0 + FD_STEP),
+                    &tip(1.0 - FD_STEP),
+                    &sol.tip.rotation,
+                    FD_STEP,
+                );
+                // columns that vanish (a common stiffness scale of the rigid model,
+                // a straight tube's curvature) are compared absolutely
+                let rel = if fd.norm() < 1e-9 {
+                    (got - fd).norm()
+                } else {
+                    relative_error(&got, &fd)
+                };
+                assert!(
+                    rel <= REL_TOL,
+                    "{name} {model:?} parameter {which} tube {tube} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+                );
+                worst = worst.max(rel);
+            }
+        }
+    }
+    eprintln!("{name} {model:?}: parameter Jacobian max relative error {worst:.3e}");
+    worst
+}
+
+#[test]
+fn parameter_jacobian_matches_finite_differences() {
+    for model in [Model::Torsion, Model::Rigid] {
+        parameter_columns::<2>("liu2023", model, 0x1234_5678_9ABC_DEF1);
+        parameter_columns::<2>("nitinol2", model, 0x0FED_CBA9_8765_4321);
+        parameter_columns::<3>("nitinol3", model, 0x5555_AAAA_3333_CCCC);
+    }
+}
