@@ -170,7 +170,7 @@ impl EffectId {
                 }
             }
             EffectId::Clearance => {
-                if i % 2 == 0 {
+                if i.is_multiple_of(2) {
                     (0.0, MAX_KINK_DEG)
                 } else {
                     FREE

@@ -213,7 +213,7 @@ pub enum DiagnoseError {
 impl std::fmt::Display for DiagnoseError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            DiagnoseError::Model(m) => write!(f, "the model cannot be simulated: {m}"),
+            DiagnoseError::Model(m) => write!(f, "{m}"),
             DiagnoseError::Split(m) => write!(f, "{m}"),
         }
     }
@@ -271,10 +271,9 @@ pub fn split(rec: &Recording, holdout: &Holdout) -> Result<(Vec<bool>, String), 
     let n_held = held.iter().filter(|h| **h).count();
     if n_held == 0 || n_held == held.len() {
         return Err(DiagnoseError::Split(format!(
-            "the split ({method}) leaves {} fit rows and {n_held} held-out rows of {}; \
-             both must be non-empty",
+            "the split ({method}) leaves {} fit rows and {n_held} held-out rows; both must \
+             be non-empty (--holdout chooses another)",
             held.len() - n_held,
-            rec.file
         )));
     }
     Ok((held, method))
@@ -402,6 +401,15 @@ fn not_applicable(effect: EffectId, model: &ModelSpec, rec: &Recording) -> Optio
     }
 }
 
+/// The best candidate of a round so far.
+struct Best {
+    effect: EffectId,
+    model: ModelSpec,
+    fig: Figures,
+    cost: f64,
+    e: Vec<[f64; 3]>,
+}
+
 /// Diagnoses `model` against `rec`.
 ///
 /// ```no_run
@@ -424,7 +432,8 @@ pub fn diagnose(
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
     let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
     let n = model.robot.n_tubes();
-    let base = predict(model, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    let base = predict(model, rec, &all_runs)
+        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     let e0 = errors(rec, &base.p);
     let baseline = figures(&e0, &held);
     let noise = estimate_noise(rec, &e0);
@@ -458,7 +467,7 @@ pub fn diagnose(
         .cost_at(&[])
         .ok_or_else(|| DiagnoseError::Model("the user model fails on the fit rows".into()))?;
     for round in 1.. {
-        let mut best: Option<(EffectId, ModelSpec, Figures, f64, Vec<[f64; 3]>, f64)> = None;
+        let mut best: Option<Best> = None;
         let mut round_trials = Vec::new();
         for &c in &opt.candidates {
             if c.present_in(model) || accepted.contains(&c) {
@@ -518,12 +527,25 @@ pub fn diagnose(
             if passes
                 && best
                     .as_ref()
-                    .is_none_or(|b| fig.heldout_rms_mm < b.2.heldout_rms_mm)
+                    .is_none_or(|b| fig.heldout_rms_mm < b.fig.heldout_rms_mm)
             {
-                best = Some((c, m, fig, fitted.cost, e, bic));
+                best = Some(Best {
+                    effect: c,
+                    model: m,
+                    fig,
+                    cost: fitted.cost,
+                    e,
+                });
             }
         }
-        let Some((c, m, fig, cost, e, _)) = best else {
+        let Some(Best {
+            effect: c,
+            model: m,
+            fig,
+            cost,
+            e,
+        }) = best
+        else {
             for t in &mut round_trials {
                 if t.note.is_empty() {
                     t.note = "not added: no gain on held-out rows or the information \
@@ -598,8 +620,8 @@ pub fn diagnose(
         current_e = e;
         let _ = round;
     }
-    let final_pred =
-        predict(&current, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    let final_pred = predict(&current, rec, &all_runs)
+        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     // what the explained model leaves is closer to white: estimate the noise again there
     let noise = {
         let again = estimate_noise(rec, &current_e);
@@ -811,21 +833,22 @@ pub fn calibrate(
     effects: &[EffectId],
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let (held, split_method) = split(rec, &opt.holdout)?;
-    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
-    let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
-    let n = model.robot.n_tubes();
-    let base = predict(model, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
-    let e0 = errors(rec, &base.p);
-    let baseline = figures(&e0, &held);
-    let noise = estimate_noise(rec, &e0);
-    let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-    let located = locate::locate(rec, &e0, &fit_mask, &base.p);
     for &c in effects {
         if let Some(note) = not_applicable(c, model, rec) {
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
+    let (held, split_method) = split(rec, &opt.holdout)?;
+    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+    let n = model.robot.n_tubes();
+    let base = predict(model, rec, &all_runs)
+        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
+    let e0 = errors(rec, &base.p);
+    let baseline = figures(&e0, &held);
+    let noise = estimate_noise(rec, &e0);
+    let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
+    let located = locate::locate(rec, &e0, &fit_mask, &base.p);
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {
         if !blocks.contains(&c) {
@@ -877,7 +900,8 @@ pub fn calibrate(
             DiagnoseError::Model("the model cannot be simulated with these effects".into())
         })?;
     let m = problem.model(&fitted.x);
-    let pred = predict(&m, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+    let pred = predict(&m, rec, &all_runs)
+        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     let e = errors(rec, &pred.p);
     let fig = figures(&e, &held);
     let change: Vec<[f64; 3]> = e
@@ -971,7 +995,8 @@ pub fn evaluate(models: &[ModelSpec], rec: &Recording) -> Result<Vec<RunErrors>,
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
     let mut sizes = Vec::with_capacity(models.len());
     for m in models {
-        let p = predict(m, rec, &all_runs).map_err(|e| DiagnoseError::Model(e.to_string()))?;
+        let p = predict(m, rec, &all_runs)
+            .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
         sizes.push(
             errors(rec, &p.p)
                 .iter()

@@ -1,0 +1,226 @@
+//! End-to-end tests of `ctr-cli diagnose`, `calibrate` and `evaluate` on a shared
+//! recording: the report, the fitted robot file that `fk` reads as is, the plots, and
+//! bad input.
+
+mod common;
+use common::*;
+use std::path::PathBuf;
+
+fn shared(rel: &str) -> PathBuf {
+    std::env::var_os("CTR_SHARED_DATA")
+        .map_or_else(|| repo("../shared/data"), PathBuf::from)
+        .join(rel)
+}
+
+fn s(p: &std::path::Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn diagnose_writes_report_fitted_model_and_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
+    let fitted = dir.path().join("fitted.toml");
+    let plots = dir.path().join("plots");
+    let robot = shared("robots/liu2023.toml");
+    let rec = shared("recordings/dev-clearance.csv");
+    let o = run(&[
+        "diagnose",
+        "--robot",
+        s(&robot),
+        "--recording",
+        s(&rec),
+        "--report",
+        s(&report),
+        "--out",
+        s(&fitted),
+        "--plots",
+        s(&plots),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("leaves out the clearance between the tubes"),
+        "{out}"
+    );
+    assert!(out.contains("consistent with measurement noise"), "{out}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in ["baseline", "findings", "final", "unexplained"] {
+        assert!(r.get(key).is_some(), "report lacks {key}");
+    }
+    let f = &r["findings"][0];
+    assert_eq!(f["effect"], "clearance");
+    for key in [
+        "explanation",
+        "where",
+        "parameters",
+        "rms_mm_before",
+        "rms_mm_after",
+        "heldout_rms_mm_before",
+        "heldout_rms_mm_after",
+    ] {
+        assert!(f.get(key).is_some(), "finding lacks {key}");
+    }
+    let peak = f["parameters"]["peak_deg"][0].as_f64().unwrap();
+    let max = f["parameters"]["max_deflection_deg"][0].as_f64().unwrap();
+    assert!((peak - 205.0).abs() < 5.0 && (max - 2.5).abs() < 0.2, "{f}");
+    assert!(
+        r["final"]["heldout_rms_mm"].as_f64().unwrap()
+            < 0.25 * r["baseline"]["heldout_rms_mm"].as_f64().unwrap()
+    );
+    // the plots
+    let names: Vec<String> = std::fs::read_dir(&plots)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        names.iter().any(|n| n.starts_with("residual-vs-")),
+        "{names:?}"
+    );
+    assert!(names.iter().any(|n| n == "run-rot-inner.svg"), "{names:?}");
+    // the fitted model is a robot file: evaluate reads it and it is better on every run
+    let o = run(&[
+        "evaluate",
+        "--robot",
+        s(&robot),
+        "--robot",
+        s(&fitted),
+        "--recording",
+        s(&rec),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = String::from_utf8_lossy(&o.stdout).into_owned();
+    let all = table.lines().find(|l| l.starts_with("all")).unwrap();
+    let nums: Vec<f64> = all
+        .split(|c: char| c.is_whitespace() || c == '/')
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    // rows, mean/max before, mean/max after
+    assert!(nums[3] < 0.3 * nums[1], "{table}");
+    // and fk solves with it
+    let joints = dir.path().join("joints.csv");
+    std::fs::write(&joints, "s1_mm,theta1_deg,s2_mm,theta2_deg\n35,0,80,205\n").unwrap();
+    let o = run(&["fk", "--robot", s(&fitted), "--joints", s(&joints)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn calibrate_fits_the_named_effect_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
+    let o = run(&[
+        "calibrate",
+        "--robot",
+        s(&shared("robots/nitinol3.toml")),
+        "--recording",
+        s(&shared("recordings/dev-registration.csv")),
+        "--fit",
+        "registration",
+        "--report",
+        s(&report),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let f = &r["findings"][0];
+    assert_eq!(f["effect"], "registration");
+    let t = &f["parameters"]["translation_mm"];
+    let want = [3.0, -2.0, 5.0];
+    for i in 0..3 {
+        assert!((t[i].as_f64().unwrap() - want[i]).abs() < 0.3, "{t}");
+    }
+    assert!((f["parameters"]["rotation_deg"].as_f64().unwrap() - 2.0).abs() < 0.1);
+}
+
+#[test]
+fn bad_diagnose_input_exits_2_with_one_line() {
+    let robot = shared("robots/liu2023.toml");
+    let rec = shared("recordings/dev-clean.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let untimed = dir.path().join("untimed.csv");
+    std::fs::write(
+        &untimed,
+        "s1_mm,theta1_deg,s2_mm,theta2_deg,x_mm,y_mm,z_mm\n35,0,80,0,1,2,80\n35,0,81,0,1,2,81\n",
+    )
+    .unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec![
+                "diagnose",
+                "--robot",
+                s(&robot),
+                "--recording",
+                s(&rec),
+                "--effects",
+                "lag",
+            ],
+            "unknown effect \"lag\"",
+        ),
+        (
+            vec![
+                "diagnose",
+                "--robot",
+                s(&robot),
+                "--recording",
+                s(&rec),
+                "--holdout",
+                "blocks:1",
+            ],
+            "wanted blocks:K",
+        ),
+        (
+            vec![
+                "diagnose",
+                "--robot",
+                s(&robot),
+                "--recording",
+                s(&rec),
+                "--holdout",
+                "runs:nope",
+            ],
+            "no run labelled nope",
+        ),
+        (
+            vec![
+                "diagnose",
+                "--robot",
+                s(&robot),
+                "--recording",
+                s(&rec),
+                "--report",
+                "/nonexistent/r.json",
+            ],
+            "directory /nonexistent does not exist",
+        ),
+        (
+            vec![
+                "diagnose",
+                "--robot",
+                s(&robot),
+                "--recording",
+                "/nonexistent.csv",
+            ],
+            "/nonexistent.csv: cannot read",
+        ),
+        (
+            vec![
+                "calibrate",
+                "--robot",
+                s(&robot),
+                "--recording",
+                s(&untimed),
+                "--fit",
+                "latency",
+            ],
+            "no t_s column",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = run(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(e.contains(want), "{args:?}: {e}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{args:?}: {e}");
+    }
+}
