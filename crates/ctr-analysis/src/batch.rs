@@ -13,8 +13,9 @@
 //! the fixed chunking makes even those last bits reproducible.
 
 use crate::ik::{Ik, IkResult, IkTarget};
+use crate::model::{FkModel, ModelError};
 use crate::robot::{AnyRobot, FkResult};
-use ctr_core::{JointError, Model};
+use ctr_core::{JointError, LoadError, Model};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -118,6 +119,78 @@ pub fn batch_fk(
         },
     );
     out
+}
+
+/// As [`batch_fk`], for a robot file's whole model (its effects included; see
+/// [`crate::model`]): `options.model` is not used (the model has its own). With time
+/// effects ([`FkModel::needs_time`]) the rows are one run in order: `t_s` gives their
+/// times (non-decreasing; the caller checks), without them the row index stands for
+/// time (latency is then refused). The actual joints of the run are found first, then
+/// the rows are solved in the same fixed chunks as [`batch_fk`]. The error of a row is
+/// `LoadError::Joint` when its (actual) joints are out of the robot's ranges.
+///
+/// # Panics
+/// If `joints.len()` is not a multiple of `2 * n_tubes`, or `t_s` does not have one
+/// time per row.
+///
+/// ```
+/// use ctr_analysis::{batch::{batch_fk, batch_fk_model, BatchOptions}, model::FkModel, AnyRobot};
+/// use ctr_analysis::formats::Effects;
+/// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
+/// let robot = AnyRobot::new(&[t]).unwrap();
+/// let rows = [10.0, 0.0, 20.0, 0.0, 30.0, 90.0];
+/// let model = FkModel::new(&robot, ctr_core::Model::Torsion, &Effects::default()).unwrap();
+/// let with = batch_fk_model(&model, &rows, None, &BatchOptions::default(), &()).unwrap();
+/// let plain = batch_fk(&robot, &rows, &BatchOptions::default(), &());
+/// assert_eq!(with[2].unwrap(), plain[2].unwrap());
+/// ```
+pub fn batch_fk_model(
+    model: &FkModel,
+    joints: &[f64],
+    t_s: Option<&[f64]>,
+    options: &BatchOptions,
+    progress: &dyn Progress,
+) -> Result<Vec<Result<FkResult, LoadError>>, ModelError> {
+    let width = 2 * model.robot().n_tubes();
+    assert!(
+        joints.len().is_multiple_of(width),
+        "{} joint values do not make rows of {width}",
+        joints.len()
+    );
+    let rows = joints.len() / width;
+    if let Some(t) = t_s {
+        assert_eq!(t.len(), rows, "one time per row");
+    }
+    let actual = if model.needs_time() {
+        Some(model.actual_joints(joints, t_s, std::slice::from_ref(&(0..rows)))?)
+    } else {
+        None
+    };
+    let mut out = Vec::with_capacity(rows);
+    for_each_chunk(
+        rows,
+        options.chunk_rows,
+        options.threads,
+        progress,
+        || (),
+        |(), range| {
+            let mut solver = model.solver();
+            range
+                .map(|row| {
+                    let r = row * width..(row + 1) * width;
+                    match &actual {
+                        Some(a) => solver.fk_actual(&a[r]),
+                        None => solver.fk(&joints[r]),
+                    }
+                })
+                .collect::<Vec<_>>()
+        },
+        |_, results| {
+            out.extend(results);
+            true
+        },
+    );
+    Ok(out)
 }
 
 /// Runs `work` over the rows `0..rows` in chunks of `chunk_rows` consecutive rows

@@ -17,7 +17,8 @@ use crate::formats::{
     ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable,
 };
 use crate::ik::{Ik, IkOptions, IkStatus};
-use ctr_core::{Model, Status};
+use crate::model::{FkModel, ModelError};
+use ctr_core::{LoadError, Model, Status};
 use std::io::{Read, Write};
 use std::path::PathBuf;
 
@@ -117,13 +118,26 @@ fn read_input(input: &Input) -> Result<(String, Vec<u8>), Error> {
 const UNIT_CHUNKS: usize = 16;
 
 /// Runs a job; see the module docs for the order of work.
+///
+/// The robot file's whole model is solved ([`FkModel`]: `[model] kind`, or
+/// `job.model`, and every table of `[model.effects]`). With time effects (latency,
+/// friction with a non-zero play) the rows are time series: a `t_s` column gives their
+/// times, a `run` column cuts them into runs (contiguous rows with the same label; the
+/// whole file without it), each simulated on its own in file order; without `t_s` the
+/// row order stands for time, and latency is refused.
 pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> {
-    let spec = read_robot(&job.robot)?;
-    let model = job.model.unwrap_or(spec.model);
+    let (robot_name, spec) = (input_name(&job.robot), read_robot(&job.robot)?);
+    let fkm = FkModel::from_spec(&spec, job.model).map_err(|e| model_error(&robot_name, e))?;
     let table = {
         let (name, bytes) = read_input(&job.joints)?;
         JointTable::from_bytes(bytes, &name, &spec.robot, job.threads)?
     };
+    let actual = if fkm.needs_time() {
+        Some(time_series(&table, &fkm, &robot_name)?)
+    } else {
+        None
+    };
+    let width = 2 * spec.robot.n_tubes();
     let mark = job.on_error == OnError::Mark;
     let skip = job.on_error == OnError::Skip;
     let header = tip_header(table.header(), mark)
@@ -138,7 +152,7 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
         text: Vec<u8>,
         written: usize,
         failures: Vec<RowFailure>,
-        joint_error: Option<(usize, ctr_core::JointError)>,
+        row_error: Option<(usize, LoadError)>,
     }
     let mut failures = Vec::new();
     let mut written = 0;
@@ -152,21 +166,25 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
         progress,
         || (),
         |(), rows| {
-            let mut solver = spec.robot.solver();
+            let mut solver = fkm.solver();
             let mut chunk = Chunk {
                 text: Vec::with_capacity(rows.len() * (table.header().len() * 12 + 180)),
                 written: 0,
                 failures: Vec::new(),
-                joint_error: None,
+                row_error: None,
             };
             for row in rows {
                 if row % WARM_CHUNK_ROWS == 0 {
-                    solver = spec.robot.solver();
+                    solver = fkm.solver();
                 }
-                let fk = match solver.fk(table.joints(row), model) {
+                let solved = match &actual {
+                    Some(a) => solver.fk_actual(&a[row * width..(row + 1) * width]),
+                    None => solver.fk(table.joints(row)),
+                };
+                let fk = match solved {
                     Ok(fk) => fk,
                     Err(e) => {
-                        chunk.joint_error = Some((row, e));
+                        chunk.row_error = Some((row, e));
                         break;
                     }
                 };
@@ -190,10 +208,10 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
             chunk
         },
         |_, chunk| {
-            if let Some((row, e)) = chunk.joint_error {
+            if let Some((row, e)) = chunk.row_error {
                 failed = Some(Error::new(
                     Location::line(table.file(), table.line(row)),
-                    ErrorKind::Joint(e),
+                    fkm.row_error(e),
                 ));
                 return false;
             }
@@ -250,6 +268,105 @@ fn read_robot(input: &Input) -> Result<RobotSpec, Error> {
         )
     })?;
     RobotSpec::from_toml_str(&text, &name)
+}
+
+/// The name an input has in messages.
+fn input_name(input: &Input) -> String {
+    match input {
+        Input::Stdin => "<stdin>".to_owned(),
+        Input::Path(p) => p.display().to_string(),
+    }
+}
+
+/// A model that cannot be built, located at the robot file.
+fn model_error(robot: &str, e: ModelError) -> Error {
+    let kind = match e {
+        ModelError::Robot(e) => ErrorKind::Robot(e),
+        other => ErrorKind::Effect {
+            message: other.to_string(),
+        },
+    };
+    Error::new(Location::file(robot), kind)
+}
+
+/// The actual joints of a joint file's rows under the model's time effects: `t_s`
+/// (when the file has it) the rows' times, `run` (when it has it) their runs; see
+/// [`run_fk`].
+fn time_series(table: &JointTable, fkm: &FkModel, robot: &str) -> Result<Vec<f64>, Error> {
+    let file = table.file();
+    let t_col = table.column("t_s");
+    if t_col.is_none() {
+        if let Some(effect) = fkm.needs_times() {
+            let tau = fkm.effects().latency.map_or(0.0, |l| l.tau_s);
+            return Err(Error::new(
+                Location::line(file, table.header_line()),
+                ErrorKind::Effect {
+                    message: format!(
+                        "{effect} needs a t_s column (seconds; rows of a run in time order) to \
+                         delay the commands by model.effects.{effect}.tau_s = {tau} s of \
+                         {robot}; add one, or remove the table"
+                    ),
+                },
+            ));
+        }
+    }
+    let run_col = table.column("run");
+    let mut times = Vec::with_capacity(if t_col.is_some() { table.len() } else { 0 });
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    let mut label_of_run: &str = "";
+    for row in 0..table.len() {
+        let at = |kind| Error::new(Location::line(file, table.line(row)), kind);
+        let label = run_col.map_or("", |c| table.field(row, c).trim());
+        let same_run = row > 0 && label == label_of_run;
+        if let Some(c) = t_col {
+            let cell = table.field(row, c);
+            let t: f64 = cell.trim().parse().map_err(|_| {
+                at(ErrorKind::NotANumber {
+                    column: "t_s".into(),
+                    found: cell.to_owned(),
+                })
+            })?;
+            if !t.is_finite() {
+                return Err(at(ErrorKind::NotFinite {
+                    column: "t_s".into(),
+                    found: cell.to_owned(),
+                }));
+            }
+            if let (true, Some(&prev)) = (same_run, times.last()) {
+                if t < prev {
+                    let run = if run_col.is_some() {
+                        format!(" in run {label}")
+                    } else {
+                        String::new()
+                    };
+                    return Err(at(ErrorKind::Csv {
+                        message: format!(
+                            "column t_s: {t} is earlier than the previous row's {prev}{run}; \
+                             the rows of a run must be in time order (model.effects of {robot} \
+                             act along time)"
+                        ),
+                    }));
+                }
+            }
+            times.push(t);
+        }
+        match runs.last_mut() {
+            Some(r) if same_run => r.end = row + 1,
+            _ => {
+                runs.push(row..row + 1);
+                label_of_run = label;
+            }
+        }
+    }
+    fkm.actual_joints(table.all_joints(), t_col.map(|_| &times[..]), &runs)
+        .map_err(|e| {
+            Error::new(
+                Location::line(file, table.header_line()),
+                ErrorKind::Effect {
+                    message: e.to_string(),
+                },
+            )
+        })
 }
 
 /// Where a job's output goes until it is complete: a temporary file beside the target,
@@ -383,8 +500,14 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
         (name, read_robot(&job.robot)?)
     };
     let model = job.model.unwrap_or(spec.model);
-    let ik = Ik::new(&spec.robot, model, spec.limits.as_deref(), job.options)
-        .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(e)))?;
+    let ik = Ik::with_effects(
+        &spec.robot,
+        model,
+        &spec.effects,
+        spec.limits.as_deref(),
+        job.options,
+    )
+    .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(e)))?;
     let table = {
         let (name, bytes) = read_input(&job.targets)?;
         TargetTable::from_bytes(bytes, &name, job.position_only, job.threads)?

@@ -3,7 +3,8 @@
 //!
 //! Data flows one way: files ([`formats`]) -> a validated robot ([`AnyRobot`], the
 //! core's `Robot<f64, N>` for a tube count known at run time) and checked joints or
-//! targets -> core solves ([`batch`], parallel, thread-count independent; [`ik`] for
+//! targets -> core solves of the file's whole model ([`model`]: the robot, its `[model]
+//! kind` and `[model.effects]`; [`batch`], parallel, thread-count independent; [`ik`] for
 //! targets) -> tip or joint files. [`job`] strings these together for `ctr-cli fk` and
 //! `ctr-cli ik`. The forward numerics are the core's; this crate reads, dispatches and
 //! writes, and solves the inverse problem on top of the core's forward kinematics.
@@ -32,6 +33,7 @@ mod error;
 pub mod formats;
 pub mod ik;
 pub mod job;
+pub mod model;
 mod robot;
 pub mod simulate;
 pub mod timeline;

@@ -14,6 +14,14 @@ Output: every input column as read, then x_mm,y_mm,z_mm (tip position in W, mm) 
 qw,qx,qy,qz (tip orientation, unit quaternion with qw >= 0); with --on-error mark also
 status,residual_per_mm. Floats are written in shortest round-trip form.
 
+Model: the robot file's [model] kind (or --model) with every table of [model.effects]:
+joint offsets, scaled stiffness and precurvature, clearance kinks or gravity, and the
+tip as measured (sensor offset, registration: then x_mm,...,qz are in the measuring
+frame). Time effects (latency, friction) act along the rows in file order: a t_s
+column gives their times (seconds, non-decreasing within a run; latency needs it), a
+run column cuts them into runs (contiguous rows with one label, each simulated on its
+own); without t_s the row order stands for time.
+
 Exit status: 0 success, 1 solves did not converge (--on-error fail), 2 bad input.";
 
 const MAIN_EXAMPLE: &str = "\
@@ -31,6 +39,11 @@ Example:
 Targets: the contract's tip file: x_mm,y_mm,z_mm (tip position in W, mm) and optionally
 qw,qx,qy,qz (tip orientation, a unit quaternion: the targets are then poses;
 --position-only ignores them). The tip file `ctr-cli fk` writes is a target file.
+
+Model: as `ctr-cli fk` solves it, with the robot file's static [model.effects] (joint
+offsets: the joints found are the commanded ones; scaled tubes; clearance or gravity;
+sensor offset and registration: targets are in the measuring frame). Time effects
+(latency, friction with a non-zero play) cannot be inverted target by target: refused.
 
 Output: the input's other columns as read, then s1_mm,theta1_deg,... (the joints,
 within the core's ranges and the robot file's [limits]), the tip reached there

@@ -79,6 +79,21 @@ impl JointTable {
         &self.table.header
     }
 
+    /// The 1-based line of the header.
+    pub fn header_line(&self) -> usize {
+        self.table.header_line
+    }
+
+    /// The index of the column named `name` (header names trimmed), if present.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.table.header.iter().position(|h| h.trim() == name)
+    }
+
+    /// The raw field of data row `row` in column `column` (an index into the header).
+    pub fn field(&self, row: usize, column: usize) -> &str {
+        self.table.fields(row).nth(column).unwrap_or_default()
+    }
+
     /// The robot's tube count the table was checked against.
     pub fn n_tubes(&self) -> usize {
         self.n_tubes

@@ -291,6 +291,17 @@ impl RobotFile {
             path.extend(keys.into_iter().map(Name));
             return Err((ErrorKind::Effect { message }, path));
         }
+        if section.effects.gravity.is_some() && section.kind == ModelKind::Rigid {
+            return Err((
+                ErrorKind::Effect {
+                    message: "model.kind: \"rigid\" cannot be combined with \
+                              model.effects.gravity (the loaded solver models torsion); use \
+                              kind = \"torsion\""
+                        .into(),
+                },
+                vec![Name("model"), Name("kind")],
+            ));
+        }
         let (stiffness, radius) = section.effects.scale_factors(params.len());
         if let Err(e) = robot.scaled(&stiffness, &radius) {
             return Err((ErrorKind::Robot(e), vec![Name("model"), Name("effects")]));

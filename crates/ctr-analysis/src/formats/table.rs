@@ -41,6 +41,8 @@ const PARSE_CHUNK_ROWS: usize = 4096;
 pub(crate) struct Table {
     pub file: String,
     pub header: Vec<String>,
+    /// 1-based line of the header
+    pub header_line: usize,
     /// numeric values per row (required, then the optional group if present)
     pub width: usize,
     /// whether the optional group is present
@@ -287,6 +289,7 @@ impl Table {
         let mut table = Table {
             file: file.to_owned(),
             header,
+            header_line,
             width,
             has_optional,
             data,

@@ -13,7 +13,8 @@
 //! make [`tip_jacobian`] return its result; nothing else changes.
 
 use super::limits::JointLimits;
-use ctr_core::{Frame, Joints, Model, Robot, Solver, SolverConfig, Status};
+use ctr_core::effects::Effects;
+use ctr_core::{Frame, Gravity, Joints, Loads, Model, Robot, Solver, SolverConfig, Status};
 use nalgebra::{Matrix3, Rotation3, SMatrix, UnitQuaternion, Vector3};
 
 /// Most joints (`2 * MAX_TUBES`): the IK's matrices have this size, padded.
@@ -50,17 +51,30 @@ pub(crate) trait TipFk: Send + Sync {
     fn boxed_clone(&self) -> Box<dyn TipFk>;
 }
 
-/// [`TipFk`] on the core's solver.
+/// [`TipFk`] on the core's solver, with the robot file's static effects (the robot
+/// already scaled): joint offsets, clearance kinks, sensor offset and registration
+/// through `Solver::solve_with`, or, with gravity, `Solver::solve_loaded` and the
+/// effects' `measured` (as [`crate::model`] composes them). The tip is in the
+/// measuring frame, where the targets are.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct CoreFk<const N: usize> {
     robot: Robot<f64, N>,
     model: Model,
+    effects: Effects<f64, N>,
+    gravity: Option<Gravity<f64>>,
+    /// no effects: the plain solve
+    plain: bool,
     current: Solver<f64, N>,
     pending: Solver<f64, N>,
 }
 
 impl<const N: usize> CoreFk<N> {
-    pub fn new(robot: Robot<f64, N>, model: Model) -> Self {
+    pub fn new(
+        robot: Robot<f64, N>,
+        model: Model,
+        effects: Effects<f64, N>,
+        gravity: Option<Gravity<f64>>,
+    ) -> Self {
         let s = Solver::new(SolverConfig {
             residual_tolerance_per_mm: FK_RESIDUAL_TOLERANCE,
             ..SolverConfig::default()
@@ -68,8 +82,40 @@ impl<const N: usize> CoreFk<N> {
         CoreFk {
             robot,
             model,
+            plain: gravity.is_none() && effects == Effects::default(),
+            effects,
+            gravity,
             current: s,
             pending: s,
+        }
+    }
+
+    fn solve_once(
+        &self,
+        solver: &mut Solver<f64, N>,
+        joints: &Joints<f64, N>,
+    ) -> Option<ctr_core::Solution<f64, N>> {
+        if self.plain {
+            return solver.solve(&self.robot, joints, self.model).ok();
+        }
+        match self.gravity {
+            None => solver
+                .solve_with(&self.robot, joints, self.model, &self.effects)
+                .ok(),
+            Some(g) => {
+                let mut actual = *joints;
+                for i in 0..N {
+                    actual.s_mm[i] += self.effects.feed_offset_mm[i];
+                    actual.theta_rad[i] += self.effects.rotation_offset_rad[i];
+                }
+                let loads = Loads {
+                    gravity: Some(g),
+                    ..Default::default()
+                };
+                let mut sol = solver.solve_loaded(&self.robot, &actual, &loads).ok()?;
+                sol.tip = self.effects.measured(&sol.tip);
+                Some(sol)
+            }
         }
     }
 
@@ -82,13 +128,13 @@ impl<const N: usize> CoreFk<N> {
             (sol.status == Status::Converged || sol.residual_per_mm <= FK_ACCEPT_RESIDUAL)
                 && sol.tip.position.iter().all(|v| v.is_finite())
         };
-        let sol = solver.solve(&self.robot, &joints, self.model).ok()?;
+        let sol = self.solve_once(solver, &joints)?;
         if ok(&sol) {
             return Some(sol.tip);
         }
         // a warm start from far away can fail where a cold one does not
         solver.reset();
-        let sol = solver.solve(&self.robot, &joints, self.model).ok()?;
+        let sol = self.solve_once(solver, &joints)?;
         ok(&sol).then_some(sol.tip)
     }
 }

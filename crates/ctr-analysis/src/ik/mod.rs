@@ -95,9 +95,10 @@ mod qp;
 pub use fk::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 pub use limits::{JointLimits, LimitsError, RotationRange};
 
-use crate::formats::{RobotSpec, TubeLimits};
+use crate::formats::{Effects, RobotSpec, TubeLimits};
+use crate::model::FkModel;
 use crate::robot::AnyRobot;
-use ctr_core::{Frame, Model};
+use ctr_core::{Frame, Model, Robot};
 use fk::{log_so3, tip_jacobian, CoreFk, Jacobian, TipFk, MAX_JOINTS};
 use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3, Vector6};
 
@@ -248,6 +249,10 @@ pub enum IkError {
     /// The limits are unusable.
     #[error(transparent)]
     Limits(#[from] LimitsError),
+    /// An effect of the robot file cannot be inverted row by row (latency, friction),
+    /// or does not fit the robot; the message starts with its key.
+    #[error("{0}")]
+    Effect(String),
     /// An option is out of its range.
     #[error("IK option {name} = {value} must be {wanted}")]
     Option {
@@ -369,6 +374,45 @@ impl Ik {
         limits: Option<&[TubeLimits]>,
         options: IkOptions,
     ) -> Result<Ik, IkError> {
+        Ik::with_effects(robot, model, &Effects::default(), limits, options)
+    }
+
+    /// As [`new`](Self::new), with a robot file's `[model.effects]` (`robot` as
+    /// described, unscaled). The forward model inside the IK is the file's whole static
+    /// model ([`crate::model`]): joint offsets (the joints found are the commanded ones),
+    /// scaled tubes, clearance kinks or gravity, and the tip as measured (sensor offset,
+    /// registration): targets are in the measuring frame. Time effects (latency,
+    /// friction with a non-zero play) make a row's tip depend on the rows before it and
+    /// cannot be inverted row by row: refused ([`IkError::Effect`]).
+    pub fn with_effects(
+        robot: &AnyRobot,
+        model: Model,
+        effects: &Effects,
+        limits: Option<&[TubeLimits]>,
+        options: IkOptions,
+    ) -> Result<Ik, IkError> {
+        let fkm =
+            FkModel::new(robot, model, effects).map_err(|e| IkError::Effect(e.to_string()))?;
+        for (effect, on) in [
+            ("latency", effects.latency.is_some_and(|l| l.tau_s != 0.0)),
+            (
+                "friction",
+                effects.friction.as_ref().is_some_and(|f| {
+                    f.rotation_play_deg
+                        .iter()
+                        .chain(&f.feed_play_mm)
+                        .any(|&w| w > 0.0)
+                }),
+            ),
+        ] {
+            if on {
+                return Err(IkError::Effect(format!(
+                    "model.effects.{effect}: a time effect cannot be inverted target by target \
+                     (the tip at a row depends on the rows before it); ik solves the static \
+                     model: remove the {effect} table for ik"
+                )));
+            }
+        }
         let o = &options;
         check_option(
             "position_weight",
@@ -410,11 +454,24 @@ impl Ik {
         )?;
         let lengths: Vec<f64> = robot.tube_params().iter().map(|p| p.length_mm).collect();
         let limits = JointLimits::new(&lengths, limits)?;
-        let fk: Box<dyn TipFk> = match robot {
-            AnyRobot::One(r) => Box::new(CoreFk::new(*r, model)),
-            AnyRobot::Two(r) => Box::new(CoreFk::new(*r, model)),
-            AnyRobot::Three(r) => Box::new(CoreFk::new(*r, model)),
-            AnyRobot::Four(r) => Box::new(CoreFk::new(*r, model)),
+        fn core<const N: usize>(r: &Robot<f64, N>, model: Model, e: &Effects) -> Box<dyn TipFk> {
+            let mut effects = e.core_effects::<N>();
+            let offsets = e.time_effects(N).joint_offset;
+            for i in 0..N {
+                effects.feed_offset_mm[i] = offsets[2 * i];
+                effects.rotation_offset_rad[i] = offsets[2 * i + 1].to_radians();
+            }
+            let gravity = e
+                .gravity
+                .as_ref()
+                .map(|g| ctr_core::Gravity::new(g.direction_w, g.g_m_s2));
+            Box::new(CoreFk::new(*r, model, effects, gravity))
+        }
+        let fk: Box<dyn TipFk> = match fkm.robot() {
+            AnyRobot::One(r) => core(r, model, effects),
+            AnyRobot::Two(r) => core(r, model, effects),
+            AnyRobot::Three(r) => core(r, model, effects),
+            AnyRobot::Four(r) => core(r, model, effects),
         };
         let mut rng = SplitMix(options.seed);
         let n = 2 * limits.n_tubes();
@@ -439,9 +496,16 @@ impl Ik {
         })
     }
 
-    /// An IK solver for a robot file's robot, model and `[limits]`.
+    /// An IK solver for a robot file's robot, model, effects (see
+    /// [`with_effects`](Self::with_effects)) and `[limits]`.
     pub fn from_spec(spec: &RobotSpec, options: IkOptions) -> Result<Ik, IkError> {
-        Ik::new(&spec.robot, spec.model, spec.limits.as_deref(), options)
+        Ik::with_effects(
+            &spec.robot,
+            spec.model,
+            &spec.effects,
+            spec.limits.as_deref(),
+            options,
+        )
     }
 
     /// The settings.
