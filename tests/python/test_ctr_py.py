@@ -602,3 +602,217 @@ def test_package_metadata():
     assert re.match(r"^\d+\.\d+\.\d+", ctr_py.__version__)
     pkg = Path(ctr_py.__file__).parent
     assert (pkg / "py.typed").exists() and (pkg / "_ctr.pyi").exists()
+
+
+# ---------------------------------------------------------------- [model.effects]
+
+LIU = REPO / "data" / "robots" / "liu2023.toml"
+
+STATIC_EFFECTS = """
+[model.effects.joint_offset]
+feed_mm = [0.4, -0.3]
+rotation_deg = [2.0, -3.0]
+
+[model.effects.clearance]
+max_deflection_deg = [2.5]
+peak_deg = [205.0]
+
+[model.effects.stiffness]
+factor = [1.1, 0.9]
+
+[model.effects.precurvature]
+radius_factor = [1.05, 0.95]
+
+[model.effects.sensor_offset]
+offset_mm = [0.5, -0.3, -2.0]
+
+[model.effects.registration]
+translation_mm = [3.0, -2.0, 5.0]
+rotation_axis = [0.3, 0.9, 0.3]
+rotation_deg = 2.0
+"""
+
+GRAVITY_EFFECTS = """
+[model.effects.gravity]
+direction_W = [0.0, -1.0, 0.0]
+
+[model.effects.joint_offset]
+rotation_deg = [5.0, 0.0]
+
+[model.effects.registration]
+translation_mm = [1.0, 2.0, 3.0]
+"""
+
+TIME_EFFECTS = """
+[model.effects.latency]
+tau_s = 0.15
+
+[model.effects.friction]
+rotation_play_deg = [6.0]
+
+[model.effects.joint_offset]
+feed_mm = [0.2, 0.0]
+
+[model.effects.registration]
+translation_mm = [0.5, 0.0, -1.0]
+"""
+
+LIU_LIMITS = """
+[[limits.tube]]
+increment_mm = [20.0, 70.0]
+theta_deg = [-180.0, 180.0]
+
+[[limits.tube]]
+increment_mm = [25.0, 95.0]
+theta_deg = [-180.0, 180.0]
+"""
+
+
+def liu_with(tmp_path: Path, tables: str, name: str = "robot.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(LIU.read_text() + "\n" + tables)
+    return path
+
+
+def liu_joints(m: int) -> np.ndarray:
+    """A smooth motion of liu2023 inside its stable ranges; the rotations reverse."""
+    u = np.arange(m) / 10.0
+    s1 = 40.0 + 10.0 * np.sin(0.7 * u)
+    s2 = s1 + 55.0 + 15.0 * np.sin(0.5 * u + 1.0)
+    return np.stack(
+        [s1, 60.0 * np.sin(0.9 * u), s2, 150.0 * np.sin(0.6 * u + 0.5)], axis=1
+    )
+
+
+@pytest.mark.parametrize("tables", [STATIC_EFFECTS, GRAVITY_EFFECTS], ids=["static", "gravity"])
+def test_fk_with_effects_equals_cli_to_the_last_bit(cli, tmp_path, tables):
+    path = liu_with(tmp_path, tables)
+    robot = ctr_py.Robot.from_toml(path)
+    q = liu_joints(100)
+    _, pos, quat = cli_fk(cli, tmp_path, path, robot, q)
+    p, qu = robot.fk(q)
+    assert bits_equal(p, pos) and bits_equal(qu, quat)
+    p1, qu1 = robot.fk(q, threads=1)
+    assert bits_equal(p1, p) and bits_equal(qu1, qu)
+    # the effects act
+    plain, _ = ctr_py.Robot.from_toml(LIU).fk(q)
+    assert np.max(np.linalg.norm(p - plain, axis=1)) > 0.1
+
+
+def test_effects_survive_to_toml_and_pickling(tmp_path):
+    robot = ctr_py.Robot.from_toml(liu_with(tmp_path, STATIC_EFFECTS))
+    text = robot.to_toml()
+    for table in ("joint_offset", "clearance", "stiffness", "precurvature", "sensor_offset", "registration"):
+        assert f"[model.effects.{table}]" in text
+    again = ctr_py.Robot.from_toml_str(text, "fitted.toml")
+    assert again == robot
+    q = liu_joints(40)
+    assert bits_equal(again.fk(q)[0], robot.fk(q)[0])
+    unpickled = pickle.loads(pickle.dumps(robot))
+    assert unpickled == robot and bits_equal(unpickled.fk(q)[0], robot.fk(q)[0])
+    # the effects are part of the robot: without them it is another robot
+    assert robot != ctr_py.Robot.from_toml(LIU)
+
+
+def test_time_effects_need_times_and_equal_cli(cli, tmp_path):
+    path = liu_with(tmp_path, TIME_EFFECTS)
+    robot = ctr_py.Robot.from_toml(path)
+    q = liu_joints(80)
+    t = 0.1 * np.arange(len(q))
+    with pytest.raises(ctr_py.InputError, match=r"model\.effects\.latency acts along time: pass t_s="):
+        robot.fk(q)
+    p, qu = robot.fk(q, t_s=t)
+    # ctr-cli fk on the same rows with a t_s column (one run)
+    joints = tmp_path / "joints.csv"
+    with open(joints, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["t_s", *robot.joint_columns])
+        w.writerows([[repr(float(ti)), *(repr(float(v)) for v in row)] for ti, row in zip(t, q)])
+    out = tmp_path / "tips.csv"
+    r = run_cli(cli, "fk", "--robot", str(path), "--joints", str(joints), "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    _, pos, quat = read_tips(out)
+    assert bits_equal(p, pos) and bits_equal(qu, quat)
+    # time matters: the static part alone differs
+    static = ctr_py.Robot.from_toml(
+        liu_with(
+            tmp_path,
+            "[model.effects.joint_offset]\nfeed_mm = [0.2, 0.0]\n"
+            "[model.effects.registration]\ntranslation_mm = [0.5, 0.0, -1.0]\n",
+            "static.toml",
+        )
+    )
+    assert np.max(np.linalg.norm(static.fk(q)[0] - p, axis=1)) > 0.1
+    # bad times
+    with pytest.raises(ctr_py.InputError, match=r"^t_s\[3\]: 0\.1 is earlier than the previous row's 0\.2"):
+        bad = t.copy()
+        bad[3] = 0.1
+        robot.fk(q, t_s=bad)
+    with pytest.raises(ctr_py.InputError, match=r"^t_s\[2\]: nan is not a finite number"):
+        bad = t.copy()
+        bad[2] = np.nan
+        robot.fk(q, t_s=bad)
+    with pytest.raises(ctr_py.InputError, match=r"^t_s: "):
+        robot.fk(q, t_s=t[:-1])
+    # one row: a float time
+    p0, _ = robot.fk(q[0], t_s=0.0)
+    assert p0.shape == (3,)
+
+
+def test_friction_alone_needs_times_too(tmp_path):
+    robot = ctr_py.Robot.from_toml(liu_with(tmp_path, "[model.effects.friction]\nrotation_play_deg = [6.0]\n"))
+    q = liu_joints(20)
+    with pytest.raises(ctr_py.InputError, match=r"model\.effects\.friction acts along time"):
+        robot.fk(q)
+    p, _ = robot.fk(q, t_s=np.arange(20.0))
+    assert p.shape == (20, 3)
+    with pytest.raises(ctr_py.InputError, match=r"model\.effects\.friction: a time effect cannot be inverted"):
+        robot.ik(p)
+
+
+def test_ik_through_static_effects(tmp_path):
+    robot = ctr_py.Robot.from_toml(liu_with(tmp_path, STATIC_EFFECTS + LIU_LIMITS))
+    q = liu_joints(30)
+    targets, _ = robot.fk(q)
+    joints, residual, status = robot.ik(targets)
+    assert list(status) == ["reached"] * len(q)
+    back, _ = robot.fk(joints)
+    assert np.max(np.linalg.norm(back - targets, axis=1)) <= 1e-3
+    # the Jacobian is the measured tip's
+    j = robot.jacobian(q[3])
+    h = 1e-5
+    up, down = q[3].copy(), q[3].copy()
+    up[0] += h
+    down[0] -= h
+    dp = (robot.fk(up)[0] - robot.fk(down)[0]) / (2 * h)
+    assert np.allclose(j[:3, 0], dp, rtol=1e-4, atol=1e-6)
+
+
+def test_ik_refuses_latency_with_the_cli_message(cli, tmp_path):
+    case = BAD / "ik-latency-refused"
+    robot = ctr_py.Robot.from_toml(case / "robot.toml")
+    p = run_cli(cli, "ik", "--robot", "robot.toml", "--targets", "targets.csv", "-o", str(tmp_path / "o.csv"), cwd=case)
+    assert p.returncode == 2
+    message = p.stderr.strip()[len("error: ") :]
+    with pytest.raises(ctr_py.InputError) as e:
+        robot.ik([-5.0, 0.0, 90.0])
+    assert str(e.value) == message.replace("robot.toml", str(case / "robot.toml"), 1)
+
+
+def test_backbone_with_effects(tmp_path):
+    robot = ctr_py.Robot.from_toml(
+        liu_with(tmp_path, "[model.effects.registration]\ntranslation_mm = [3.0, -2.0, 5.0]\n"
+                 "rotation_axis = [0.3, 0.9, 0.3]\nrotation_deg = 2.0\n"
+                 "[model.effects.joint_offset]\nrotation_deg = [0.0, 10.0]\n"
+                 "[model.effects.stiffness]\nfactor = [1.1, 0.9]\n")
+    )
+    q = liu_joints(5)[3]
+    b = robot.backbone(q)
+    p, _ = robot.fk(q)
+    assert np.allclose(b[-1], p, rtol=0, atol=1e-9)
+    assert np.allclose(b[0], [3.0, -2.0, 5.0], rtol=0, atol=1e-12)
+    clearance = ctr_py.Robot.from_toml(
+        liu_with(tmp_path, "[model.effects.clearance]\nmax_deflection_deg = [2.5]\npeak_deg = [205.0]\n", "c.toml")
+    )
+    with pytest.raises(ctr_py.InputError, match=r"model\.effects\.clearance: backbone solves the static mechanics only"):
+        clearance.backbone(q)

@@ -9,10 +9,11 @@ use crate::arrays::{self, Rows};
 use crate::errors::{self, Fail};
 use crate::parallel;
 use ctr_analysis::batch::{
-    batch_fk, batch_ik, BatchOptions, IkBatchOptions, IK_CHUNK_ROWS, WARM_CHUNK_ROWS,
+    batch_fk_model, batch_ik, BatchOptions, IkBatchOptions, IK_CHUNK_ROWS, WARM_CHUNK_ROWS,
 };
 use ctr_analysis::formats::RobotSpec;
 use ctr_analysis::ik::{Ik, IkError, IkOptions, IkTarget};
+use ctr_analysis::model::{FkModel, ModelError};
 use ctr_analysis::{status_name, AnyRobot, Error, ErrorKind, Location};
 use ctr_core::{JointError, Joints, Model, Robot as CoreRobot, Solver, Status};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -102,6 +103,16 @@ fn backbone_of<const N: usize>(
     }
 }
 
+/// What a model that cannot be built or run is, as `ctr-cli fk` reports it.
+fn model_kind(e: ModelError) -> ErrorKind {
+    match e {
+        ModelError::Robot(e) => ErrorKind::Robot(e),
+        other => ErrorKind::Effect {
+            message: other.to_string(),
+        },
+    }
+}
+
 /// The failure `ctr-cli fk --on-error fail` reports: the first failed row, and counts.
 fn solver_failed(
     location: Location,
@@ -181,17 +192,81 @@ impl Robot {
         Ok(())
     }
 
+    /// The file's whole model solved with `model` (see `ctr_analysis::model`); refused
+    /// as `ctr-cli fk` refuses it, located at the robot file.
+    fn fk_model(&self, model: Model) -> PyResult<FkModel> {
+        FkModel::from_spec(&self.spec, Some(model))
+            .map_err(|e| errors::to_py(&Error::new(Location::file(&self.source), model_kind(e))))
+    }
+
+    /// The times of the rows for the model's time effects: `t_s` (one per row,
+    /// finite, non-decreasing); required when the model has time effects (latency,
+    /// friction with a non-zero play), ignored (but checked) otherwise.
+    fn times_arg(
+        &self,
+        fkm: &FkModel,
+        t_s: Option<&Bound<'_, PyAny>>,
+        rows: &Rows,
+    ) -> PyResult<Option<Vec<f64>>> {
+        let Some(obj) = t_s else {
+            if fkm.needs_time() {
+                let effect = if fkm.needs_times().is_some() {
+                    "latency"
+                } else {
+                    "friction"
+                };
+                return Err(errors::input(format!(
+                    "{}: model.effects.{effect} acts along time: pass t_s= (the rows' times, \
+                     seconds, non-decreasing; the rows are then one run in order)",
+                    self.source
+                )));
+            }
+            return Ok(None);
+        };
+        let obj = obj
+            .py()
+            .import("numpy")?
+            .call_method1("atleast_1d", (obj,))?;
+        let t = arrays::read_rows(&obj, "t_s", &[rows.rows], "one time per row of q, seconds")?;
+        if t.batched || (rows.batched && t.rows != 1) {
+            // a (m,) vector reads as one row of width m; a scalar per single q as (1,)
+            return Err(errors::input(format!(
+                "t_s: wanted shape ({},), one time per row of q",
+                rows.rows
+            )));
+        }
+        let t = t.data;
+        for (i, &v) in t.iter().enumerate() {
+            let at = errors::at("t_s", i, rows.batched);
+            if !v.is_finite() {
+                return Err(errors::input(format!(
+                    "{at}: {} is not a finite number",
+                    arrays::nonfinite_text(v)
+                )));
+            }
+            if i > 0 && v < t[i - 1] {
+                return Err(errors::input(format!(
+                    "{at}: {v} is earlier than the previous row's {}; the rows are one run \
+                     and must be in time order",
+                    t[i - 1]
+                )));
+            }
+        }
+        Ok(Some(t))
+    }
+
     /// An IK solver of `model` within the file's limits, or the message of why not.
     fn build_ik(&self, model: Model, options: IkOptions) -> Result<Ik, String> {
-        Ik::new(
+        Ik::with_effects(
             &self.spec.robot,
             model,
+            &self.spec.effects,
             self.spec.limits.as_deref(),
             options,
         )
         .map_err(|e| match e {
             // located at the robot file, as `ctr-cli ik` does
-            IkError::Limits(_) => format!("{}: {e}", self.source),
+            IkError::Limits(_) | IkError::Effect(_) => format!("{}: {e}", self.source),
             _ => e.to_string(),
         })
     }
@@ -212,7 +287,11 @@ impl Robot {
                         seed_samples: 0,
                         ..IkOptions::default()
                     };
-                    Ik::new(&self.spec.robot, model, None, options).map_err(|e| e.to_string())
+                    Ik::with_effects(&self.spec.robot, model, &self.spec.effects, None, options)
+                        .map_err(|e| match e {
+                            IkError::Effect(_) => format!("{}: {e}", self.source),
+                            _ => e.to_string(),
+                        })
                 } else {
                     self.build_ik(model, cli_ik_options())
                 }
@@ -394,7 +473,7 @@ impl Robot {
     }
 
     /// Tip forward kinematics of joint rows; see `_ctr.pyi`.
-    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = 0))]
+    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = 0, t_s = None))]
     fn fk<'py>(
         &self,
         py: Python<'py>,
@@ -402,8 +481,10 @@ impl Robot {
         model: Option<&str>,
         on_error: &str,
         threads: usize,
+        t_s: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
+        let fkm = self.fk_model(model)?;
         let threads = threads_arg(threads)?;
         let mark = match on_error {
             "fail" => false,
@@ -415,6 +496,7 @@ impl Robot {
             }
         };
         let rows = self.read_joints(q, "q")?;
+        let times = self.times_arg(&fkm, t_s, &rows)?;
         let options = BatchOptions {
             model,
             threads,
@@ -423,7 +505,8 @@ impl Robot {
         let (positions, quaternions, statuses, residuals) = py
             .detach(|| -> Result<_, Error> {
                 self.check_joints(&rows, "q")?;
-                let results = batch_fk(&self.spec.robot, &rows.data, &options, &());
+                let results = batch_fk_model(&fkm, &rows.data, times.as_deref(), &options, &())
+                    .map_err(|e| Error::new(Location::file("t_s"), model_kind(e)))?;
                 let m = rows.rows;
                 let mut positions = Vec::with_capacity(3 * m);
                 let mut quaternions = Vec::with_capacity(4 * m);
@@ -433,7 +516,7 @@ impl Robot {
                 let mut first_failure = None;
                 for (i, r) in results.into_iter().enumerate() {
                     let at = || errors::at("q", i, rows.batched);
-                    let fk = r.map_err(|e| Error::new(at(), ErrorKind::Joint(e)))?;
+                    let fk = r.map_err(|e| Error::new(at(), fkm.row_error(e)))?;
                     if fk.status != Status::Converged {
                         failed += 1;
                         first_failure.get_or_insert((at(), fk.status, fk.residual_per_mm));
@@ -476,6 +559,23 @@ impl Robot {
         model: Option<&str>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let model = self.model_arg(model)?;
+        let fkm = self.fk_model(model)?;
+        let effects = fkm.effects();
+        for (effect, on) in [
+            ("clearance", effects.clearance.is_some()),
+            ("gravity", effects.gravity.is_some()),
+            ("latency", fkm.needs_times().is_some()),
+            ("friction", fkm.needs_time()),
+        ] {
+            if on {
+                return Err(errors::input(format!(
+                    "{}: model.effects.{effect}: backbone solves the static mechanics only \
+                     (joint offsets, stiffness, precurvature, registration); use fk for the tip \
+                     with this effect",
+                    self.source
+                )));
+            }
+        }
         let rows = self.read_joints(q, "q")?;
         if rows.batched {
             return Err(errors::input(format!(
@@ -486,15 +586,43 @@ impl Robot {
         let points = py
             .detach(|| -> Result<Vec<f64>, Error> {
                 self.check_joints(&rows, "q")?;
-                let q = rows.row(0);
-                let solved = match &self.spec.robot {
+                // the commanded joints plus the offsets, on the scaled tubes
+                let q: Vec<f64> = if fkm.shifts_joints() {
+                    fkm.actual_joints(rows.row(0), None, std::slice::from_ref(&(0..1)))
+                        .map_err(|e| Error::new(Location::file("q"), model_kind(e)))?
+                } else {
+                    rows.row(0).to_vec()
+                };
+                let q = &q[..];
+                let solved = match fkm.robot() {
                     AnyRobot::One(r) => backbone_of(r, q, model),
                     AnyRobot::Two(r) => backbone_of(r, q, model),
                     AnyRobot::Three(r) => backbone_of(r, q, model),
                     AnyRobot::Four(r) => backbone_of(r, q, model),
                 };
-                let (status, residual, points) =
-                    solved.map_err(|e| Error::new(Location::file("q"), ErrorKind::Joint(e)))?;
+                let (status, residual, mut points) = solved.map_err(|e| {
+                    Error::new(
+                        Location::file("q"),
+                        fkm.row_error(ctr_core::LoadError::Joint(e)),
+                    )
+                })?;
+                if let Some(r) = fkm.effects().registration {
+                    // in the measuring frame, as fk's tips
+                    let axis = if r.rotation_axis.iter().all(|&x| x == 0.0) {
+                        [0.0, 0.0, 1.0]
+                    } else {
+                        r.rotation_axis
+                    };
+                    let reg = ctr_core::effects::Registration::from_axis_angle(
+                        axis,
+                        r.rotation_deg.to_radians(),
+                        r.translation_mm,
+                    );
+                    for p in points.chunks_exact_mut(3) {
+                        let m = reg.apply_point(&Vector3::new(p[0], p[1], p[2]));
+                        p.copy_from_slice(&[m.x, m.y, m.z]);
+                    }
+                }
                 if status != Status::Converged {
                     return Err(solver_failed(Location::file("q"), status, residual, 1, 1));
                 }

@@ -18,6 +18,12 @@ Conventions of every call:
   ``[model] kind``.
 - ``threads`` is the number of worker threads, 0 (the default) for all cores, at most
   1024. Results never depend on it. The GIL is released while solving.
+- The robot file's ``[model.effects]`` are part of the model, as in ``ctr-cli``: joint
+  offsets (``q`` are the commanded joints), scaled stiffness and precurvature,
+  clearance kinks or gravity, and the tip as measured (sensor offset, then
+  registration: positions and orientations are in the measuring frame). Time effects
+  (``latency``, ``friction`` with a non-zero play) need the rows' times: see
+  :meth:`Robot.fk`.
 """
 
 from os import PathLike
@@ -33,8 +39,9 @@ F64 = npt.NDArray[np.float64]
 Model = Literal["rigid", "torsion"]
 
 class Robot:
-    """A robot read from a robot TOML file: its tubes, ``[model]``, ``[limits]`` and
-    ``[actuation]``, validated exactly as ``ctr-cli`` validates them.
+    """A robot read from a robot TOML file: its tubes, ``[model]`` (with
+    ``[model.effects]``), ``[limits]`` and ``[actuation]``, validated exactly as
+    ``ctr-cli`` validates them.
 
     Immutable, comparable with ``==`` (same robot description) and picklable: it
     pickles as its TOML text, so it can be sent to worker processes
@@ -56,8 +63,8 @@ class Robot:
         """Parses robot TOML text; errors name the file ``name``."""
 
     def to_toml(self) -> str:
-        """The robot file's TOML text, with an explicit ``[model]``.
-        ``Robot.from_toml_str(r.to_toml()) == r``."""
+        """The robot file's TOML text, with an explicit ``[model]`` and its
+        ``[model.effects]`` tables. ``Robot.from_toml_str(r.to_toml()) == r``."""
 
     @property
     def n_tubes(self) -> int:
@@ -91,6 +98,7 @@ class Robot:
         *,
         on_error: Literal["fail"] = "fail",
         threads: int = 0,
+        t_s: Optional[ArrayLike] = None,
     ) -> Tuple[F64, F64]: ...
     @overload
     def fk(
@@ -100,6 +108,7 @@ class Robot:
         *,
         on_error: Literal["mark"],
         threads: int = 0,
+        t_s: Optional[ArrayLike] = None,
     ) -> Tuple[F64, F64, Union[npt.NDArray[np.str_], str], Union[F64, float]]: ...
     def fk(
         self,
@@ -108,6 +117,7 @@ class Robot:
         *,
         on_error: Literal["fail", "mark"] = "fail",
         threads: int = 0,
+        t_s: Optional[ArrayLike] = None,
     ) -> tuple:
         """Tip forward kinematics: ``positions, quaternions = robot.fk(q)``.
 
@@ -127,13 +137,33 @@ class Robot:
         returns two more results, the status of every row (``"converged"``,
         ``"iteration_limit"`` or ``"diverged"``) and its free-tip torque residual in
         rad/mm. (The CLI's ``skip`` has no counterpart: mask with the status.)
+
+        Effects: the robot file's ``[model.effects]`` are applied as ``ctr-cli fk``
+        applies them (see the module notes), with the same numbers to the last bit.
+        Time effects (``latency``, ``friction`` with a non-zero play) make a row's tip
+        depend on the rows before it: then ``t_s`` is required, the rows' times in
+        seconds, shape ``(m,)`` (or a float for one row), finite and non-decreasing;
+        the rows are one run in order (friction's memory starts at the first row;
+        latency interpolates the commands between rows), exactly as ``ctr-cli fk`` on
+        a joint file with that ``t_s`` column and no ``run`` column. Without ``t_s``
+        such a robot raises :class:`~ctr_py.InputError` naming the effect (the CLI,
+        for a file without ``t_s``, takes the row order as time; here rows are often
+        unrelated configurations, so the times must be given). For several runs call
+        ``fk`` once per run. Without time effects ``t_s`` is checked and not used.
         """
 
     def backbone(self, q: ArrayLike, model: Optional[Model] = None) -> F64:
         """Backbone points of one joint vector ``q`` (shape ``(2n,)``): an array
         ``(k, 3)`` of positions in W, mm, from the guide exit (the first point) to the
         tip (the last), one per integration step. Solved cold; raises
-        :class:`~ctr_py.SolverError` when the solve does not converge."""
+        :class:`~ctr_py.SolverError` when the solve does not converge.
+
+        Effects: the backbone of the static mechanics: joint offsets added, tubes
+        scaled (stiffness, precurvature), points in the measuring frame when the file
+        has a registration (the sensor offset is not a backbone point: the last point
+        is the tube's tip, not the tracked point). Robots with clearance kinks, gravity
+        or time effects raise :class:`~ctr_py.InputError` (the backbone solver does not
+        model them; use :meth:`fk` for the tip)."""
 
     def jacobian(
         self, q: ArrayLike, model: Optional[Model] = None, *, threads: int = 0
@@ -148,6 +178,9 @@ class Robot:
         tight tolerances (1e-13 rad/mm), one-sided at the core's joint bounds (the
         robot file's ``[limits]`` do not apply here). Raises
         :class:`~ctr_py.SolverError` where the forward kinematics does not converge.
+        The forward kinematics is the file's static model with its effects (as in
+        :meth:`ik`): the Jacobian of the measured tip with respect to the commanded
+        joints. Time effects raise :class:`~ctr_py.InputError`.
         """
 
     def ik(
@@ -199,4 +232,12 @@ class Robot:
         pose), ``"unreachable"`` (the closest point found, for a target outside the
         workspace), ``"iteration_limit"`` or ``"fk_failed"``. An unreachable target is
         not an error.
+
+        Effects: the forward model inside the IK is the file's static model, as
+        ``ctr-cli ik`` uses it: the joints found are the commanded ones (joint offsets
+        included) and the targets are in the measuring frame (sensor offset and
+        registration are inverted with the rest). Time effects (``latency``,
+        ``friction`` with a non-zero play) cannot be inverted target by target:
+        raises :class:`~ctr_py.InputError` naming ``model.effects.latency`` /
+        ``friction``, with the CLI's message.
         """
