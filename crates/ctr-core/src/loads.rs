@@ -32,10 +32,13 @@ use crate::se3::Frame;
 use crate::sections::{Section, Sections};
 use crate::solver::{solve_linear, Model, Solution, Solver, Status};
 use core::fmt;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Matrix6, Vector3};
 
 /// Most unknowns of a loaded solve: `MAX_TUBES - 1` base twists and a base moment.
 pub const MAX_UNKNOWNS: usize = crate::MAX_TUBES - 1 + 3;
+
+/// Derivative directions of a compliance pass: the unknowns, tip force and tip moment.
+const COMPLIANCE_DIRECTIONS: usize = MAX_UNKNOWNS + 6;
 
 /// Standard gravity, m/s^2.
 pub const STANDARD_GRAVITY_M_S2: f64 = 9.81;
@@ -163,26 +166,34 @@ struct LState<S, const N: usize> {
     w: [S; N],
 }
 
+/// A loaded solve's solution, unknowns, sections and per-solve constants.
+type LoadedSolve<T, const N: usize> =
+    (Solution<T, N>, [T; MAX_UNKNOWNS], Sections<T, N>, Ctx<T, N>);
+
 /// Per-solve constants.
 struct Ctx<T, const N: usize> {
     gj: [T; N],
     weight: [T; N],
     dir: Vector3<T>,
-    tip_force: Vector3<T>,
     s: [T; N],
 }
 
 impl<T: Real, const N: usize> Ctx<T, N> {
-    /// Internal force at arc length `at` (W, N): the tip force plus the weight beyond.
-    fn force(&self, at: T) -> [T; 3] {
+    /// Internal force at arc length `at` (W, N): the tip force `tip` plus the weight
+    /// beyond.
+    fn force<S: Num<T>>(&self, at: T, tip: &[S; 3]) -> [S; 3] {
         let mut beyond = T::zero();
         for i in 0..N {
             if self.s[i] > at {
                 beyond += self.weight[i] * (self.s[i] - at.max(T::zero()));
             }
         }
-        let n = self.tip_force + self.dir * beyond;
-        [n.x, n.y, n.z]
+        let w = self.dir * beyond;
+        [
+            tip[0] + S::cst(w.x),
+            tip[1] + S::cst(w.y),
+            tip[2] + S::cst(w.z),
+        ]
     }
 }
 
@@ -200,7 +211,7 @@ fn rhs<T: Real, S: Num<T>, const N: usize>(
     sec: &Section<T, N>,
     ctx: &Ctx<T, N>,
     st: &LState<S, N>,
-    force: [T; 3],
+    force: [S; 3],
 ) -> LState<S, N> {
     let [qw, qx, qy, qz] = st.q;
     let two = c::<T>(2.0);
@@ -244,8 +255,7 @@ fn rhs<T: Real, S: Num<T>, const N: usize>(
         (qw * uy + qz * ux - qx * un) * half,
         (qw * un + qx * uy - qy * ux) * half,
     ];
-    let nf = [S::cst(force[0]), S::cst(force[1]), S::cst(force[2])];
-    let pm = cross(&ez, &nf);
+    let pm = cross(&ez, &force);
     d.m = [-pm[0], -pm[1], -pm[2]];
     for j in 0..N - 1 {
         if !sec.present[j] {
@@ -287,6 +297,7 @@ impl<S: Copy, const N: usize> LState<S, N> {
 fn section<T: Real, S: Num<T>, const N: usize>(
     sec: &Section<T, N>,
     ctx: &Ctx<T, N>,
+    tip_force: &[S; 3],
     st: &mut LState<S, N>,
 ) {
     let len = sec.end - sec.start;
@@ -295,9 +306,9 @@ fn section<T: Real, S: Num<T>, const N: usize>(
     let half = h * c(0.5);
     let mut s = sec.start;
     for _ in 0..n {
-        let f0 = ctx.force(s);
-        let f1 = ctx.force(s + half);
-        let f2 = ctx.force(s + h);
+        let f0 = ctx.force(s, tip_force);
+        let f1 = ctx.force(s + half, tip_force);
+        let f2 = ctx.force(s + h, tip_force);
         let k1 = rhs(sec, ctx, st, f0);
         let k2 = rhs(sec, ctx, &st.axpy(&k1, half), f1);
         let k3 = rhs(sec, ctx, &st.axpy(&k2, half), f1);
@@ -332,7 +343,8 @@ fn integrate<T: Real, S: Num<T>, const N: usize>(
     q: &Joints<T, N>,
     sections: &Sections<T, N>,
     ctx: &Ctx<T, N>,
-    tip_moment: &[T; 3],
+    tip_force: &[S; 3],
+    tip_moment: &[S; 3],
     x: &[S; MAX_UNKNOWNS],
 ) -> ([S; MAX_UNKNOWNS], LState<S, N>) {
     let zero = S::cst(T::zero());
@@ -380,12 +392,12 @@ fn integrate<T: Real, S: Num<T>, const N: usize>(
     };
     record(&st, T::zero(), &mut r);
     for sec in sections.list.iter().take(sections.len) {
-        section(sec, ctx, &mut st);
+        section(sec, ctx, tip_force, &mut st);
         record(&st, sec.end, &mut r);
     }
     record(&st, T::max_value().unwrap_or(T::one()), &mut r);
     for i in 0..3 {
-        r[N - 1 + i] = st.m[i] - S::cst(tip_moment[i]);
+        r[N - 1 + i] = st.m[i] - tip_moment[i];
     }
     (r, st)
 }
@@ -410,6 +422,17 @@ impl<T: Real, const N: usize> Solver<T, N> {
         q: &Joints<T, N>,
         loads: &Loads<T>,
     ) -> Result<Solution<T, N>, LoadError> {
+        self.loaded_solve(robot, q, loads).map(|(sol, ..)| sol)
+    }
+
+    /// [`solve_loaded`](Self::solve_loaded), also returning the unknowns, the sections
+    /// and the per-solve constants.
+    fn loaded_solve(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        loads: &Loads<T>,
+    ) -> Result<LoadedSolve<T, N>, LoadError> {
         q.validate(robot)?;
         let finite = |v: &[T; 3]| v.iter().all(|x| x.is_finite());
         if !finite(&loads.tip_force_n) || !finite(&loads.tip_moment_nmm) {
@@ -463,7 +486,6 @@ impl<T: Real, const N: usize> Solver<T, N> {
             gj: robot.tubes().map(|t| t.torsional_stiffness_nmm2()),
             weight,
             dir,
-            tip_force: Vector3::from(loads.tip_force_n),
             s: q.s_mm,
         };
         let unknowns = N + 2;
@@ -484,8 +506,15 @@ impl<T: Real, const N: usize> Solver<T, N> {
             }
         };
         let (st, res) = loop {
-            let (r, st) =
-                integrate::<T, T, N>(robot, q, &sections, &ctx, &loads.tip_moment_nmm, &x);
+            let (r, st) = integrate::<T, T, N>(
+                robot,
+                q,
+                &sections,
+                &ctx,
+                &loads.tip_force_n,
+                &loads.tip_moment_nmm,
+                &x,
+            );
             let mut res = T::zero();
             let mut rv = [T::zero(); MAX_UNKNOWNS];
             for i in 0..unknowns {
@@ -510,7 +539,9 @@ impl<T: Real, const N: usize> Solver<T, N> {
             if jac.is_none() || res > prev_res * c(CHORD_CONTRACTION) {
                 let xd: [Dual<T, MAX_UNKNOWNS>; MAX_UNKNOWNS] =
                     core::array::from_fn(|i| Dual::var(x[i], i));
-                let (rd, _) = integrate(robot, q, &sections, &ctx, &loads.tip_moment_nmm, &xd);
+                let fd = loads.tip_force_n.map(Dual::cst);
+                let md = loads.tip_moment_nmm.map(Dual::cst);
+                let (rd, _) = integrate(robot, q, &sections, &ctx, &fd, &md, &xd);
                 let mut j = [[T::zero(); MAX_UNKNOWNS]; MAX_UNKNOWNS];
                 for i in 0..unknowns {
                     j[i] = rd[i].eps;
@@ -550,7 +581,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             base_angle[j] =
                 q.theta_rad[j] + (robot.tubes()[j].params().length_mm - q.s_mm[j]) * base_twist[j];
         }
-        Ok(Solution {
+        let sol = Solution {
             tip: frame_of(&st),
             status,
             residual_per_mm: res,
@@ -560,7 +591,78 @@ impl<T: Real, const N: usize> Solver<T, N> {
             // the loaded shooting Jacobian mixes units (twists and moments): the
             // unloaded solve's margin is reported
             stability_margin: margin,
-        })
+        };
+        Ok((sol, x, sections, ctx))
+    }
+
+    /// Solves under `loads` (as [`solve_loaded`](Self::solve_loaded)) and returns the
+    /// tip's compliance there: the 6 x 6 derivative of `(p_tip, rotation)` with respect
+    /// to `(F_tip, M_tip)`, all in W. Rows: tip displacement (mm), then the tip frame's
+    /// rotation as a spatial angle vector (rad, `[dphi]x = dR R^T`); columns: tip force
+    /// (N), then tip moment (N mm). So the blocks are mm/N, mm/(N mm), rad/N and
+    /// rad/(N mm). With default loads it is the compliance at zero load.
+    ///
+    /// Computed from one dual-number integration of the loaded model at the solution,
+    /// with the unknowns (base twists and base moment) eliminated by the implicit
+    /// function theorem, as in [`crate::jacobian`]. Entries are NaN where the loaded
+    /// shooting Jacobian is singular.
+    ///
+    /// ```
+    /// use ctr_core::{Joints, Loads, Robot, Solver, TubeParams};
+    /// // a straight cantilever: dx/dF_x = L^3 / (3 E I), dphi_y/dM_y = L / (E I)
+    /// let robot = Robot::new([TubeParams::<f64>::new(1.2, 0.9, 300.0, 0.0, 58000.0, 0.33)]).unwrap();
+    /// let ei = robot.tubes()[0].bending_stiffness_nmm2();
+    /// let l = 100.0;
+    /// let (_, c) = Solver::default().solve_compliance(&robot, &Joints::new([l], [0.0]), &Loads::default()).unwrap();
+    /// assert!((c[(0, 0)] - l * l * l / (3.0 * ei)).abs() < 1e-9 * c[(0, 0)]);
+    /// assert!((c[(4, 4)] - l / ei).abs() < 1e-9 * c[(4, 4)]);
+    /// ```
+    pub fn solve_compliance(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        loads: &Loads<T>,
+    ) -> Result<(Solution<T, N>, Matrix6<T>), LoadError> {
+        let (sol, x, sections, ctx) = self.loaded_solve(robot, q, loads)?;
+        let unknowns = N + 2;
+        // directions: the unknowns, then F_x, F_y, F_z, M_x, M_y, M_z
+        let xd: [Dual<T, COMPLIANCE_DIRECTIONS>; MAX_UNKNOWNS] =
+            core::array::from_fn(|i| Dual::var(x[i], i));
+        let fd: [Dual<T, COMPLIANCE_DIRECTIONS>; 3] =
+            core::array::from_fn(|i| Dual::var(loads.tip_force_n[i], unknowns + i));
+        let md: [Dual<T, COMPLIANCE_DIRECTIONS>; 3] =
+            core::array::from_fn(|i| Dual::var(loads.tip_moment_nmm[i], unknowns + 3 + i));
+        let (r, st) = integrate(robot, q, &sections, &ctx, &fd, &md, &xd);
+        // the tip rotation from the quaternion, as duals
+        let [qw, qx, qy, qz] = st.q;
+        let one = Dual::cst(T::one());
+        let two = c::<T>(2.0);
+        let rot = [
+            [
+                one - (qy * qy + qz * qz) * two,
+                (qx * qy - qw * qz) * two,
+                (qx * qz + qw * qy) * two,
+            ],
+            [
+                (qx * qy + qw * qz) * two,
+                one - (qx * qx + qz * qz) * two,
+                (qy * qz - qw * qx) * two,
+            ],
+            [
+                (qx * qz - qw * qy) * two,
+                (qy * qz + qw * qx) * two,
+                one - (qx * qx + qy * qy) * two,
+            ],
+        ];
+        // r holds the residuals of the `unknowns` unknowns (the rest are zero)
+        let cols = crate::jacobian::implicit_columns::<T, MAX_UNKNOWNS, COMPLIANCE_DIRECTIONS>(
+            &r, &st.p, &rot, unknowns, 6,
+        );
+        let mut m = Matrix6::zeros();
+        for (j, col) in cols.iter().take(6).enumerate() {
+            m.set_column(j, col);
+        }
+        Ok((sol, m))
     }
 }
 

@@ -207,3 +207,90 @@ fn parameter_jacobian_matches_finite_differences() {
         parameter_columns::<3>("nitinol3", model, 0x5555_AAAA_3333_CCCC);
     }
 }
+
+/// Compliance from sensitivities against central differences of the loaded solver in
+/// small tip forces and moments, at zero load.
+fn compliance_columns<const N: usize>(name: &str, seed: u64) -> f64 {
+    let robot: Robot<f64, N> = robot::<N>(name);
+    let mut rng = Rng(seed);
+    let mut worst = 0.0_f64;
+    // steps: small enough that the response is linear to 1e-9 relative, large enough
+    // that the tip moves ~1e-3 mm (mm/N compliances here are 1-1e3)
+    let (force_step, moment_step) = (1e-6, 1e-4);
+    for _ in 0..2 {
+        let q = random_joints::<N>(name, &mut rng);
+        let (sol, c) = tight_solver::<N>()
+            .solve_compliance(&robot, &q, &ctr_core::Loads::default())
+            .unwrap();
+        assert_eq!(sol.status, Status::Converged);
+        for col in 0..6 {
+            let h = if col < 3 { force_step } else { moment_step };
+            let tip = |d: f64| {
+                let mut loads = ctr_core::Loads::default();
+                if col < 3 {
+                    loads.tip_force_n[col] = d;
+                } else {
+                    loads.tip_moment_nmm[col - 3] = d;
+                }
+                let s = tight_solver::<N>()
+                    .solve_loaded(&robot, &q, &loads)
+                    .unwrap();
+                assert_eq!(s.status, Status::Converged, "{name} {loads:?}");
+                s.tip
+            };
+            let fd = difference(&tip(h), &tip(-h), &sol.tip.rotation, h);
+            let got: Vector6<f64> = c.column(col).into_owned();
+            let rel = relative_error(&got, &fd);
+            assert!(
+                rel <= REL_TOL,
+                "{name} compliance column {col} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+            );
+            worst = worst.max(rel);
+        }
+    }
+    eprintln!("{name}: compliance max relative error {worst:.3e}");
+    worst
+}
+
+#[test]
+fn compliance_matches_finite_differences_of_the_loaded_solver() {
+    compliance_columns::<2>("liu2023", 0xA5A5_5A5A_F00D_BEEF);
+    compliance_columns::<2>("nitinol2", 0x0123_4567_89AB_CDEF);
+    compliance_columns::<3>("nitinol3", 0xFEDC_BA98_7654_3210);
+}
+
+/// A straight cantilever of length L (exposed) and transmission `length - L`:
+/// Euler-Bernoulli `dx/dF = L^3/(3EI)`, `dx/dM = dphi/dF = L^2/(2EI)`,
+/// `dphi/dM = L/EI`; twist `dphi_z/dM_z = length/(GJ)` (the transmission twists too);
+/// no stretch along z; nothing couples the two bending planes.
+#[test]
+fn straight_cantilever_compliance_is_euler_bernoulli() {
+    let tube = TubeParams::<f64>::new(1.2, 0.9, 300.0, 0.0, 58000.0, 0.33);
+    let robot = Robot::new([tube]).unwrap();
+    let ei = robot.tubes()[0].bending_stiffness_nmm2();
+    let gj = robot.tubes()[0].torsional_stiffness_nmm2();
+    for (l, theta) in [(100.0, 0.0), (170.0, 0.7)] {
+        let (_, c) = Solver::default()
+            .solve_compliance(
+                &robot,
+                &Joints::new([l], [theta]),
+                &ctr_core::Loads::default(),
+            )
+            .unwrap();
+        let mut expected = ctr_core::nalgebra::Matrix6::<f64>::zeros();
+        let (bend, couple, rot) = (l * l * l / (3.0 * ei), l * l / (2.0 * ei), l / ei);
+        // x displaces under F_x and M_y, y under F_y and -M_x
+        expected[(0, 0)] = bend;
+        expected[(1, 1)] = bend;
+        expected[(0, 4)] = couple;
+        expected[(1, 3)] = -couple;
+        expected[(3, 1)] = -couple;
+        expected[(4, 0)] = couple;
+        expected[(3, 3)] = rot;
+        expected[(4, 4)] = rot;
+        expected[(5, 5)] = 300.0 / gj;
+        let err = (c - expected).abs().max() / expected.abs().max();
+        eprintln!("cantilever L = {l}: max error {err:.2e} of the largest entry");
+        assert!(err < 1e-10, "{c}\nexpected {expected}");
+    }
+}

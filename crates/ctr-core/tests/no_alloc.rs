@@ -98,6 +98,10 @@ fn solves_allocate_nothing() {
                 .solve_parameter_jacobian(&robot2, &r2.q, Model::Rigid)
                 .unwrap();
             checksum += pj.curvature[1][0];
+            let (_, compliance) = solver2
+                .solve_compliance(&robot2, &r2.q, &ctr_core::Loads::default())
+                .unwrap();
+            checksum += compliance[(0, 0)];
             checksum += solver3
                 .solve_loaded(&robot3, &r3.q, &gravity)
                 .unwrap()
