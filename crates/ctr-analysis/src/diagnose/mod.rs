@@ -401,6 +401,35 @@ fn not_applicable(effect: EffectId, model: &ModelSpec, rec: &Recording) -> Optio
     }
 }
 
+/// Runs `f` on every job on a pool of `threads` threads; results in job order.
+fn run_pool<J: Sync, R: Send>(threads: usize, jobs: &[J], f: impl Fn(&J) -> R + Sync) -> Vec<R> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut out: Vec<Option<R>> = (0..jobs.len()).map(|_| None).collect();
+    std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads.clamp(1, jobs.len().max(1)))
+            .map(|_| {
+                let (next, f) = (&next, &f);
+                s.spawn(move || {
+                    let mut done = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if i >= jobs.len() {
+                            break done;
+                        }
+                        done.push((i, f(&jobs[i])));
+                    }
+                })
+            })
+            .collect();
+        for w in workers {
+            for (i, r) in w.join().expect("a fit does not panic") {
+                out[i] = Some(r);
+            }
+        }
+    });
+    out.into_iter().map(|r| r.expect("every job ran")).collect()
+}
+
 /// The best candidate of a round so far.
 struct Best {
     effect: EffectId,
@@ -469,6 +498,7 @@ pub fn diagnose(
     for round in 1.. {
         let mut best: Option<Best> = None;
         let mut round_trials = Vec::new();
+        let mut todo = Vec::new();
         for &c in &opt.candidates {
             if c.present_in(model) || accepted.contains(&c) {
                 continue;
@@ -487,11 +517,26 @@ pub fn diagnose(
                 }
                 continue;
             }
+            todo.push(c);
+        }
+        // every (candidate, start) fit on its own thread of a pool; the fits then use
+        // one thread each
+        let jobs: Vec<(EffectId, Vec<f64>)> = todo
+            .iter()
+            .flat_map(|&c| c.starts(n, period).into_iter().map(move |x0| (c, x0)))
+            .collect();
+        let results = run_pool(threads, &jobs, |(c, x0)| {
+            let mut p = problem(current.clone(), vec![*c]);
+            p.threads = 1;
+            p.fit(x0, MAX_FIT_ITERATIONS)
+        });
+        for &c in &todo {
             let p = problem(current.clone(), vec![c]);
-            let fitted = c
-                .starts(n, period)
+            let fitted = jobs
                 .iter()
-                .filter_map(|x0| p.fit(x0, MAX_FIT_ITERATIONS))
+                .zip(&results)
+                .filter(|((jc, _), _)| *jc == c)
+                .filter_map(|(_, r)| r.clone())
                 .min_by(|a, b| a.cost.total_cmp(&b.cost));
             let Some(fitted) = fitted else {
                 round_trials.push(Trial {
