@@ -75,3 +75,38 @@ fn stiffness_from_hung_weights() {
     }
     assert!(d.report.final_.heldout_rms_mm < 1e-3);
 }
+
+#[test]
+fn clearance_table_from_a_recording() {
+    // the seed's "database": the kink as a table over the relative angle, here recovered
+    // from the shared clearance recording (truth: a cosine profile, 2.5 deg peak at 205 deg)
+    let dir = shared().join("recordings");
+    let spec = RobotSpec::from_path(&shared().join("robots/liu2023.toml")).unwrap();
+    let rec = Recording::from_path(&dir.join("dev-clearance.csv"), 2).unwrap();
+    let opt = Options {
+        clearance_table: Some(24),
+        ..Options::default()
+    };
+    let d = calibrate(
+        &ModelSpec::from_spec(&spec),
+        &rec,
+        &[EffectId::Clearance],
+        &opt,
+    )
+    .unwrap();
+    let t = &d.fitted.effects.clearance.as_ref().unwrap().table_deg[0];
+    assert_eq!(t.len(), 24);
+    let truth = |phi: f64| 2.5 * (1.0 + (phi - 205f64).to_radians().cos()) / 2.0;
+    let worst = t
+        .iter()
+        .enumerate()
+        .map(|(k, v)| (v - truth(15.0 * k as f64)).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "table {t:.2?}\nworst {worst:.3} deg; held out {:.3} mm",
+        d.report.final_.heldout_rms_mm
+    );
+    assert!(worst < 0.2, "{worst}");
+    let floor = 0.3478;
+    assert!(d.report.final_.heldout_rms_mm < 1.05 * floor);
+}

@@ -121,6 +121,7 @@ Exit status: 0 success (also when nothing is found), 2 bad input.";
 const CALIBRATE_HELP: &str = "\
 Examples:
   ctr-cli calibrate --robot robot.toml --recording turns.csv --fit clearance --out fitted.toml
+  ctr-cli calibrate --robot robot.toml --recording turns.csv --fit clearance --table 24
   ctr-cli calibrate --robot robot.toml --recording weights.csv --fit stiffness
 
 A recording with fx_n,fy_n,fz_n columns (known tip forces in W, N, e.g. hung weights)

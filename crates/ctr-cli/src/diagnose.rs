@@ -62,6 +62,10 @@ pub struct CalibrateArgs {
     /// How rows are held out (as for diagnose).
     #[arg(long, value_name = "SPLIT", value_parser = parse_holdout)]
     pub holdout: Option<Holdout>,
+    /// With --fit clearance: a smooth table of N values per pair over one turn (the
+    /// seed's measured "database", written as table_deg) instead of a cosine profile.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(3..=72))]
+    pub table: Option<u16>,
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
@@ -208,6 +212,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         holdout: args.holdout.unwrap_or_default(),
         candidates: args.effects.unwrap_or_else(|| EffectId::ALL.to_vec()),
         threads: threads(args.threads),
+        clearance_table: None,
     };
     let model = ModelSpec::from_spec(&spec);
     let d = diagnose::diagnose(&model, &rec, &options)
@@ -227,6 +232,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
     let options = Options {
         holdout: args.holdout.unwrap_or_default(),
         threads: threads(args.threads),
+        clearance_table: args.table.map(usize::from),
         ..Options::default()
     };
     let d = diagnose::calibrate(&ModelSpec::from_spec(&spec), &rec, &args.fit, &options)

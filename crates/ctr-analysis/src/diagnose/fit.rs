@@ -36,6 +36,61 @@ pub(crate) struct Problem<'a> {
     pub huber_mm: f64,
     /// Threads for the Jacobian's columns.
     pub threads: usize,
+    /// Fit the clearance as a table of this many values per pair (the seed's measured
+    /// "database") instead of the cosine profile; its roughness (periodic second
+    /// differences) is penalised so the table stays smooth.
+    pub clearance_table: Option<usize>,
+}
+
+/// Weight of a clearance table's roughness: one degree of second difference costs as
+/// much as this many mm of tip error on one row.
+const TABLE_SMOOTHNESS_MM_PER_DEG: f64 = 2.0;
+
+impl Problem<'_> {
+    fn table(&self, b: EffectId) -> Option<usize> {
+        self.clearance_table.filter(|_| b == EffectId::Clearance)
+    }
+
+    /// Parameters of block `b`.
+    pub fn block_len(&self, b: EffectId) -> usize {
+        let n = self.n_tubes();
+        match self.table(b) {
+            Some(k) => k * n.saturating_sub(1),
+            None => b.n_params(n),
+        }
+    }
+
+    fn write_block(&self, b: EffectId, m: &mut ModelSpec, x: &[f64]) {
+        match self.table(b) {
+            Some(k) => {
+                m.effects.clearance = Some(crate::formats::Clearance {
+                    max_deflection_deg: vec![],
+                    peak_deg: vec![],
+                    table_deg: x.chunks(k).map(<[f64]>::to_vec).collect(),
+                })
+            }
+            None => b.write(m, x),
+        }
+    }
+
+    /// Roughness rows of the clearance tables in `x`, mm-equivalent.
+    fn roughness(&self, x: &[f64]) -> Vec<f64> {
+        let mut out = Vec::new();
+        let mut at = 0;
+        for &b in &self.blocks {
+            let len = self.block_len(b);
+            if let Some(k) = self.table(b) {
+                for t in x[at..at + len].chunks(k) {
+                    for i in 0..k {
+                        let d = t[(i + k - 1) % k] - 2.0 * t[i] + t[(i + 1) % k];
+                        out.extend([TABLE_SMOOTHNESS_MM_PER_DEG * d, 0.0, 0.0]);
+                    }
+                }
+            }
+            at += len;
+        }
+        out
+    }
 }
 
 /// Where a fit ended.
@@ -55,10 +110,11 @@ impl Problem<'_> {
     pub fn model(&self, x: &[f64]) -> ModelSpec {
         let mut m = self.base.clone();
         let n = self.n_tubes();
+        let _ = n;
         let mut at = 0;
-        for b in &self.blocks {
-            let k = b.n_params(n);
-            b.write(&mut m, &x[at..at + k]);
+        for &b in &self.blocks {
+            let k = self.block_len(b);
+            self.write_block(b, &mut m, &x[at..at + k]);
             at += k;
         }
         m
@@ -67,9 +123,12 @@ impl Problem<'_> {
     fn scale(&self, j: usize) -> (f64, (f64, f64)) {
         let n = self.n_tubes();
         let mut at = 0;
-        for b in &self.blocks {
-            let k = b.n_params(n);
+        for &b in &self.blocks {
+            let k = self.block_len(b);
             if j < at + k {
+                if self.table(b).is_some() {
+                    return (b.step(n, 0), b.bounds(n, 0));
+                }
                 return (b.step(n, j - at), b.bounds(n, j - at));
             }
             at += k;
@@ -85,6 +144,7 @@ impl Problem<'_> {
         for &r in &self.rows {
             out.extend_from_slice(&pred.p[r]);
         }
+        out.extend(self.roughness(x));
         out.iter().all(|v| v.is_finite()).then_some(out)
     }
 

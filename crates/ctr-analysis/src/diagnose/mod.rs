@@ -50,6 +50,8 @@ const MAD_TO_SIGMA: f64 = 1.4826;
 const MIN_BLOCK_ROWS: usize = 10;
 /// Blocks per run (at most) in the split.
 const BLOCKS_PER_RUN: usize = 8;
+/// Start of every value of a clearance table fit, deg.
+const TABLE_START_DEG: f64 = 0.5;
 /// Jacobians per fit.
 const MAX_FIT_ITERATIONS: usize = 25;
 
@@ -82,6 +84,9 @@ pub struct Options {
     pub candidates: Vec<EffectId>,
     /// Threads for the fits (0: all cores).
     pub threads: usize,
+    /// `calibrate` only: fit the clearance as a smooth table of this many values per
+    /// pair over one turn (the seed's measured "database") instead of a cosine profile.
+    pub clearance_table: Option<usize>,
 }
 
 impl Default for Options {
@@ -90,6 +95,7 @@ impl Default for Options {
             holdout: Holdout::default(),
             candidates: EffectId::ALL.to_vec(),
             threads: 0,
+            clearance_table: None,
         }
     }
 }
@@ -491,6 +497,7 @@ pub fn diagnose(
         rows: fit_rows.clone(),
         huber_mm: huber,
         threads,
+        clearance_table: None,
     };
     let mut current_cost = problem(current.clone(), vec![])
         .cost_at(&[])
@@ -770,6 +777,23 @@ fn explain(c: EffectId, m: &ModelSpec) -> String {
         EffectId::Clearance => {
             let c = e.clearance.as_ref().expect("written by the fit");
             let mut parts = Vec::new();
+            for (i, t) in c.table_deg.iter().enumerate() {
+                let (k, max) = t
+                    .iter()
+                    .enumerate()
+                    .fold(
+                        (0, f64::NEG_INFINITY),
+                        |a, (k, v)| if *v > a.1 { (k, *v) } else { a },
+                    );
+                parts.push(format!(
+                    "tube {} leaves tube {}'s tip deflected by up to {max:.2} deg, largest at a \
+                     relative angle of {:.0} deg (a table of {} values over one turn)",
+                    i + 2,
+                    i + 1,
+                    360.0 * k as f64 / t.len() as f64,
+                    t.len()
+                ));
+            }
             for i in 0..c.max_deflection_deg.len() {
                 parts.push(format!(
                     "tube {} leaves tube {}'s tip deflected by up to {:.2} deg, largest at a \
@@ -912,14 +936,23 @@ pub fn calibrate(
             f64::INFINITY
         },
         threads: threads(opt.threads),
+        clearance_table: opt.clearance_table,
     };
     let period = sample_period(rec);
     // start every block from the model's values (or its first start when absent); a
     // block with several starts tries each, the others held at their first
+    let table_start = |b: EffectId| -> Option<Vec<f64>> {
+        let k = problem
+            .clearance_table
+            .filter(|_| b == EffectId::Clearance)?;
+        Some(vec![TABLE_START_DEG; k * n.saturating_sub(1)])
+    };
     let first: Vec<Vec<f64>> = blocks
         .iter()
         .map(|b| {
-            if b.present_in(model) {
+            if let Some(t) = table_start(*b) {
+                t
+            } else if b.present_in(model) {
                 b.read(model)
             } else {
                 b.starts(n, period).swap_remove(0)
@@ -928,7 +961,7 @@ pub fn calibrate(
         .collect();
     let mut starts = vec![first.concat()];
     for (i, b) in blocks.iter().enumerate() {
-        if b.present_in(model) {
+        if b.present_in(model) || table_start(*b).is_some() {
             continue;
         }
         for alt in b.starts(n, period).into_iter().skip(1) {
