@@ -1,5 +1,9 @@
 //! Friction between tubes: hysteresis of the relative rotation (and feed).
 //!
+//! Two switchable models: the kinematic play operator ([`PlayFriction`], below) and the
+//! seed's boundary friction moment ([`BoundaryMoment`], further below), which changes
+//! the mechanics' boundary condition.
+//!
 //! Friction opposes relative rotation, so what reaches the distal end of a tube lags the
 //! actuator until the friction moment is overcome, and the lag changes sign with the
 //! direction of motion: hysteresis. Here it is the play (backlash) operator on each
@@ -18,8 +22,15 @@
 //! operator on each exposed length `s_i` (half-width in mm). The state starts centred at
 //! the first command of a run ([`PlayFriction::reset`]).
 
-use crate::joints::Joints;
+use crate::dual::{Dual, Num};
+use crate::jacobian::{integrate, Inputs};
+use crate::joints::{JointError, Joints};
 use crate::real::Real;
+use crate::robot::Robot;
+use crate::sections::Sections;
+use crate::solver::{solve_linear, Model, Solution, Solver, Status};
+use crate::Frame;
+use nalgebra::{Matrix3, Vector3};
 
 /// Play-operator friction parameters and memory for a robot of `N` tubes.
 ///
@@ -142,4 +153,292 @@ pub fn play_step<T: Real>(
 #[inline]
 pub fn play<T: Real>(y: T, x: T, w: T) -> T {
     (x + w).min((x - w).max(y))
+}
+
+// ---------------------------------------------------------------------------------------
+
+/// The seed's boundary friction moment, with a memory of the direction of relative
+/// rotation (hysteresis).
+///
+/// # Physics
+///
+/// Where tube j ends inside its neighbour (its tip at `s_j`), the inner tube j+1 leaves
+/// it with a concentrated contact that carries tube j's bending moment
+/// `M_j = E I_j (u - k_j e_j)` (`u` the shared curvature just before the tip, `e_j`
+/// tube j's precurvature direction). Relative rotation of the pair there meets a
+/// friction moment `tau_j = mu'_j |M_j|` (Liu et al. 2023, Sensors 23:3709, eq. 10:
+/// `beta'(L) = mu' |M| (1/k_2z - 1/k_1z)`; `mu'` lumps the friction coefficient and
+/// the ratio of the tube radius to the lever arm of the contact forces, so it is
+/// dimensionless), with the sign of the direction of relative rotation
+/// `sigma_j = sign(d(theta_{j+1} - theta_j))`. It enters the twist boundary-value
+/// problem of [`crate::twist`] as the torque at tube j's tip and its reaction on tube
+/// j+1:
+///
+/// ```text
+/// G J_j u_j(s_j) = sigma_j mu'_j |M_j|,      G J_{j+1} [u_{j+1}]_{s_j} = sigma_j mu'_j |M_j|
+/// ```
+///
+/// (the free tip's zero-torque condition of the frictionless model becomes a prescribed
+/// torque; the total torque stays zero). For two tubes the relative twist at the
+/// boundary is then `beta'(s_1) = u_2 - u_1 = -sigma mu' |M| (1/G J_1 + 1/G J_2)`: the
+/// seed's eq. 10 with both compliances adding (the seed prints their difference).
+/// The memory is the sign: it flips only when the commanded relative rotation reverses,
+/// so a rotation forward and back traces two branches (a hysteresis loop) whose width
+/// grows with `mu'`. Sticking (friction below its limit after a reversal) is not
+/// modelled: the moment switches sign at once.
+///
+/// ```
+/// use ctr_core::{friction::BoundaryMoment, Joints, Robot, Solver, TubeParams};
+/// let outer = TubeParams { curvature_radius_mm: Some(200.0), ..TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
+/// let inner = TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) };
+/// let robot = Robot::new([outer, inner]).unwrap();
+/// let mut friction = BoundaryMoment::new([0.2, 0.0]);
+/// let mut solver = Solver::default();
+/// let at = |deg: f64| Joints::from_mm_deg([40.0, 90.0], [0.0, deg]);
+/// friction.step(&mut solver, &robot, &at(80.0)).unwrap();
+/// let forward = friction.step(&mut solver, &robot, &at(90.0)).unwrap();
+/// friction.step(&mut solver, &robot, &at(100.0)).unwrap();
+/// let back = friction.step(&mut solver, &robot, &at(90.0)).unwrap();
+/// // same command, different direction of approach: different tips
+/// assert!((forward.tip.position - back.tip.position).norm() > 1e-3);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryMoment<T, const N: usize> {
+    /// `mu'` of pair (j, j+1) (tube j's tip), dimensionless; the last entry is unused.
+    pub mu: [T; N],
+    direction: [T; N],
+    last: Option<[T; N]>,
+}
+
+impl<T: Real, const N: usize> BoundaryMoment<T, N> {
+    /// Friction with coefficients `mu` and no remembered direction.
+    ///
+    /// ```
+    /// let f = ctr_core::friction::BoundaryMoment::<f64, 2>::new([0.1, 0.0]);
+    /// assert_eq!(f.direction(), [0.0, 0.0]);
+    /// ```
+    pub fn new(mu: [T; N]) -> Self {
+        BoundaryMoment {
+            mu,
+            direction: [T::zero(); N],
+            last: None,
+        }
+    }
+
+    /// Forgets the direction memory (the start of a run): no friction moment until a
+    /// pair turns.
+    ///
+    /// ```
+    /// let mut f = ctr_core::friction::BoundaryMoment::<f64, 2>::new([0.1, 0.0]);
+    /// f.reset();
+    /// assert_eq!(f.direction(), [0.0, 0.0]);
+    /// ```
+    pub fn reset(&mut self) {
+        self.direction = [T::zero(); N];
+        self.last = None;
+    }
+
+    /// The remembered direction of relative rotation of each pair: +1, -1 or 0 (not
+    /// moved yet).
+    ///
+    /// ```
+    /// use ctr_core::{friction::BoundaryMoment, Joints};
+    /// let mut f = BoundaryMoment::<f64, 2>::new([0.1, 0.0]);
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, 0.0]));
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, -0.1]));
+    /// assert_eq!(f.direction()[0], -1.0);
+    /// ```
+    pub fn direction(&self) -> [T; N] {
+        self.direction
+    }
+
+    /// Steps the direction memory to a new command (a pair that did not turn keeps its
+    /// direction).
+    ///
+    /// ```
+    /// use ctr_core::{friction::BoundaryMoment, Joints};
+    /// let mut f = BoundaryMoment::<f64, 2>::new([0.1, 0.0]);
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, 0.0]));
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, 0.2]));
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, 0.2]));
+    /// assert_eq!(f.direction()[0], 1.0);
+    /// ```
+    pub fn update(&mut self, q: &Joints<T, N>) {
+        let mut rel = [T::zero(); N];
+        for j in 0..N - 1 {
+            rel[j] = q.theta_rad[j + 1] - q.theta_rad[j];
+        }
+        if let Some(last) = self.last {
+            for j in 0..N - 1 {
+                let d = rel[j] - last[j];
+                if d > T::zero() {
+                    self.direction[j] = T::one();
+                } else if d < T::zero() {
+                    self.direction[j] = -T::one();
+                }
+            }
+        }
+        self.last = Some(rel);
+    }
+
+    /// Steps the memory to `q` and solves with the friction moments it implies (the
+    /// trajectory API; see [`Solver::solve_boundary_moment`] for one solve).
+    pub fn step(
+        &mut self,
+        solver: &mut Solver<T, N>,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+    ) -> Result<Solution<T, N>, JointError> {
+        self.update(q);
+        solver.solve_boundary_moment(robot, q, &self.mu, &self.direction)
+    }
+}
+
+/// Directions of a friction solve's Newton Jacobian: the base twists.
+const FRICTION_DIRECTIONS: usize = crate::MAX_TUBES - 1;
+
+impl<T: Real, const N: usize> Solver<T, N> {
+    /// Torsion-model forward kinematics with the seed's boundary friction moments
+    /// ([`BoundaryMoment`]) for given coefficients `mu` and directions of relative
+    /// rotation `direction` (+1, -1, 0 per pair). With all `mu * direction` zero this is
+    /// [`solve`](Self::solve) itself. Newton's method on the base twists from the
+    /// frictionless solution (warm-started), with a dual-number Jacobian.
+    ///
+    /// ```
+    /// use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+    /// let outer = TubeParams { curvature_radius_mm: Some(200.0), ..TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
+    /// let inner = TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) };
+    /// let robot = Robot::new([outer, inner]).unwrap();
+    /// let q = Joints::from_mm_deg([40.0, 90.0], [0.0, 90.0]);
+    /// let free = Solver::default().solve(&robot, &q, Model::Torsion).unwrap();
+    /// let none = Solver::default().solve_boundary_moment(&robot, &q, &[0.0, 0.0], &[1.0, 0.0]).unwrap();
+    /// assert_eq!(free, none);
+    /// let rub = Solver::default().solve_boundary_moment(&robot, &q, &[0.2, 0.0], &[1.0, 0.0]).unwrap();
+    /// // the outer tube's tip now carries a torque: it is twisted there
+    /// assert!(rub.residual_per_mm < 1e-10 && (rub.tip.position - free.tip.position).norm() > 1e-3);
+    /// ```
+    pub fn solve_boundary_moment(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        mu: &[T; N],
+        direction: &[T; N],
+    ) -> Result<Solution<T, N>, JointError> {
+        let free = self.solve(robot, q, Model::Torsion)?;
+        let mut coefficient = [T::zero(); N];
+        for j in 0..N - 1 {
+            coefficient[j] = mu[j] * direction[j];
+        }
+        if coefficient.iter().all(|v| *v == T::zero()) || free.status != Status::Converged {
+            return Ok(free);
+        }
+        let k = robot.tubes().map(|t| t.curvature_per_mm());
+        let sections = Sections::new(
+            robot,
+            &q.s_mm,
+            &k,
+            self.config.max_step_mm,
+            self.config.step_fraction,
+        );
+        let m = N - 1;
+        let mut x = free.base_twist_per_mm;
+        let plain = Inputs::plain(robot, q, &x);
+        let mut iterations = 0;
+        let mut status = Status::IterationLimit;
+        while iterations < self.config.max_iterations {
+            iterations += 1;
+            let mut inp = Inputs {
+                s: plain.s.map(Dual::<T, FRICTION_DIRECTIONS>::cst),
+                theta: plain.theta.map(Dual::cst),
+                x: x.map(Dual::cst),
+                ei: plain.ei,
+                gj: plain.gj,
+                k: plain.k,
+            };
+            for j in 0..m {
+                inp.x[j] = Dual::var(x[j], j);
+            }
+            let pass = integrate(
+                robot,
+                q,
+                &sections,
+                &inp,
+                Model::Torsion,
+                Some(&coefficient),
+            );
+            let mut r = [T::zero(); N];
+            let mut jac = [[T::zero(); N]; N];
+            let mut norm = T::zero();
+            for i in 0..m {
+                r[i] = pass.r[i].re;
+                norm = norm.max(r[i].abs());
+                for k in 0..m {
+                    jac[i][k] = pass.r[i].eps.get(k).copied().unwrap_or(T::zero());
+                }
+            }
+            if !norm.is_finite() {
+                status = Status::Diverged;
+                break;
+            }
+            if norm <= self.config.residual_tolerance_per_mm {
+                status = Status::Converged;
+                break;
+            }
+            let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
+                status = Status::Diverged;
+                break;
+            };
+            for i in 0..m {
+                x[i] -= dx[i];
+            }
+        }
+        // the pose and residual at the final unknowns
+        let inp = Inputs::plain(robot, q, &x);
+        let pass = integrate(
+            robot,
+            q,
+            &sections,
+            &inp,
+            Model::Torsion,
+            Some(&coefficient),
+        );
+        let mut residual = T::zero();
+        for i in 0..m {
+            residual = residual.max(pass.r[i].abs());
+        }
+        let (gj, present) = (
+            inp.gj,
+            sections
+                .list
+                .first()
+                .filter(|_| sections.len > 0)
+                .map(|s| s.present)
+                .unwrap_or([false; N]),
+        );
+        let mut un = T::zero();
+        for j in 0..m {
+            if present[j] {
+                un -= gj[j] * x[j];
+            }
+        }
+        x[N - 1] = un / gj[N - 1];
+        let mut base_angle = [T::zero(); N];
+        for j in 0..N {
+            base_angle[j] =
+                q.theta_rad[j] + (robot.tubes()[j].params().length_mm - q.s_mm[j]) * x[j];
+        }
+        let f = &pass.frame;
+        Ok(Solution {
+            tip: Frame {
+                rotation: Matrix3::from_fn(|i, j| f.r[i][j]),
+                position: Vector3::new(f.p[0], f.p[1], f.p[2]),
+            },
+            status,
+            residual_per_mm: residual,
+            iterations: free.iterations + iterations,
+            base_twist_per_mm: x,
+            base_angle_rad: base_angle,
+            stability_margin: free.stability_margin,
+        })
+    }
 }

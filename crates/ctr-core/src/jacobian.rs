@@ -581,6 +581,7 @@ pub(crate) fn integrate<T: Real, S, C, const N: usize>(
     sections: &Sections<T, N>,
     inp: &Inputs<S, C, N>,
     model: Model,
+    friction: Option<&[T; N]>,
 ) -> Pass<S, N>
 where
     S: Num<T> + Mul<C, Output = S>,
@@ -649,10 +650,54 @@ where
     for sec in sections.list.iter().take(sections.len) {
         let g = GSection::new(robot, q, inp, sec);
         g.integrate(&mut st, &mut frame);
+        if let Some(coefficient) = friction {
+            boundary_moments(q, inp, &g, sec.end, coefficient, &done, &mut st);
+        }
         record(&st, sec.end, &mut done, &mut r);
     }
     record(&st, T::max_value().unwrap_or(T::one()), &mut done, &mut r);
     Pass { r, frame }
+}
+
+/// The seed's boundary friction moment (see [`crate::friction`]) at the tips that end
+/// the section just integrated: tube j's tip carries `tau_j = coefficient_j |M_j|`
+/// (`M_j` the bending moment tube j carries there), so its residual is
+/// `u_j(s_j) - tau_j / G J_j`; the neighbour j+1 takes `-tau_j`, which raises its
+/// twist rate by `tau_j / G J_{j+1}` (the innermost tube's follows from the torque
+/// balance by itself). Tube j's twist past its own tip is never used again, so it
+/// takes the residual, which [`integrate`]'s record then keeps.
+fn boundary_moments<T: Real, S, C, const N: usize>(
+    q: &Joints<T, N>,
+    inp: &Inputs<S, C, N>,
+    g: &GSection<S, C, N>,
+    end: T,
+    coefficient: &[T; N],
+    done: &[bool; N],
+    st: &mut GState<S, N>,
+) where
+    S: Num<T> + Mul<C, Output = S>,
+    C: Num<T>,
+{
+    for j in 0..N - 1 {
+        if done[j] || q.s_mm[j] > end || coefficient[j] == T::zero() {
+            continue;
+        }
+        // tube j's moment E I_j (u - k_j e_j), e_j its precurvature direction
+        let [ux, uy, _] = g.body_rate(&st.z, S::cst(T::zero()));
+        let (mut mx, mut my) = (ux, uy);
+        if g.curved_a[j] {
+            let [cj, sj] = st.z[j];
+            mx += sj * inp.k[j];
+            my -= cj * inp.k[j];
+        }
+        let moment = (mx * mx + my * my).sqrt() * inp.ei[j];
+        let tau = moment * coefficient[j];
+        // recorded below as u_j(s_j) - tau_j / G J_j
+        st.w[j] -= tau * (C::cst(T::one()) / inp.gj[j]);
+        if j + 1 < N - 1 {
+            st.w[j + 1] += tau * (C::cst(T::one()) / inp.gj[j + 1]);
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -787,7 +832,7 @@ fn pass<T: Real, const N: usize, const K: usize>(
             for i in 0..N - 1 {
                 inp.theta[i] = seeded(plain.theta[i], m + N + i, T::one());
             }
-            let pass = integrate(robot, q, sections, &inp, model);
+            let pass = integrate(robot, q, sections, &inp, model, None);
             let mut cols =
                 implicit_columns::<T, N, K>(&pass.r, &pass.frame.p, &pass.frame.r, m, 2 * N - 1);
             // Turning every tube by the same angle turns the whole robot about W's z
@@ -817,7 +862,7 @@ fn pass<T: Real, const N: usize, const K: usize>(
                 inp.gj[i] = seeded(plain.gj[i], m + N + i, plain.gj[i]);
                 inp.k[i] = seeded(plain.k[i], m + 2 * N + i, plain.k[i]);
             }
-            integrate(robot, q, sections, &inp, model)
+            integrate(robot, q, sections, &inp, model, None)
         }
     };
     implicit_columns::<T, N, K>(&out.r, &out.frame.p, &out.frame.r, m, 3 * N)
@@ -976,7 +1021,7 @@ mod tests {
             let cfg = crate::SolverConfig::<f64>::default();
             let sections = Sections::new(&robot, &q.s_mm, &k, cfg.max_step_mm, cfg.step_fraction);
             let inp = Inputs::plain(&robot, &q, &sol.base_twist_per_mm);
-            let out = integrate(&robot, &q, &sections, &inp, model);
+            let out = integrate(&robot, &q, &sections, &inp, model, None);
             for i in 0..3 {
                 assert!((out.frame.p[i] - sol.tip.position[i]).abs() < 1e-12);
                 for j in 0..3 {
