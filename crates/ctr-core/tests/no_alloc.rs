@@ -102,6 +102,12 @@ fn solves_allocate_nothing() {
                 .solve_compliance(&robot2, &r2.q, &ctr_core::Loads::default())
                 .unwrap();
             checksum += compliance[(0, 0)];
+            checksum += solver2
+                .solve_boundary_moment(&robot2, &r2.q, &[0.1, 0.0], &[1.0, 0.0])
+                .unwrap()
+                .tip
+                .position
+                .y;
             checksum += solver3
                 .solve_loaded(&robot3, &r3.q, &gravity)
                 .unwrap()
