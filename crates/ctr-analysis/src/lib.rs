@@ -36,6 +36,7 @@ pub mod job;
 pub mod model;
 mod robot;
 pub mod simulate;
+pub mod synth;
 pub mod timeline;
 
 pub use error::{status_name, Error, ErrorKind, Location};

@@ -1,0 +1,688 @@
+//! The diagnosis run blind on generated recordings ([`ctr_analysis::synth`]): the world
+//! is the project's own model of a shared robot with effects switched on, the user's
+//! model is the robot file's plain torsion model (the rigid model where torsion is
+//! concealed). Each case asserts that the findings are exactly the concealed effects
+//! (as a set: the order is the diagnosis's) and that the held-out RMS after fitting is
+//! at most 1.25 x the noise floor, the RMS of the noise actually added to the inlier
+//! rows. With outliers, the held-out RMS is taken over the held-out inlier rows (the
+//! outliers' jumps are not a model's to explain).
+//!
+//! Magnitudes are the realistic ones of the issue: clearance 2-3 deg, friction play
+//! 3-8 deg, registration a few mm and 1-3 deg, joint offsets 1 mm and 5 deg, stiffness
+//! factors 0.7-1.4, radius factors 0.85-1.15, latency 0.2-0.8 s, sensor offsets 2-5 mm,
+//! gravity on liu2023 (the one robot that sags measurably; tracker noise 0.05 mm there,
+//! as in the shared gravity recording). Run in release:
+//! `cargo test -p ctr-analysis --release --test blind -- --nocapture`.
+//!
+//! `CTR_SYNTH_OUT=DIR` also writes every generated recording to `DIR/<case>.csv` (for
+//! `ctr-cli diagnose` and `scripts/bench_diagnose.sh`).
+
+use ctr_analysis::diagnose::{diagnose, split, Diagnosis, Options};
+use ctr_analysis::formats::{
+    Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
+    RobotSpec, SensorOffset, Stiffness,
+};
+use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
+use ctr_core::Model;
+use std::path::PathBuf;
+
+/// Tolerance on the held-out RMS after fitting, as a multiple of the noise floor.
+const FLOOR_TOLERANCE: f64 = 1.25;
+/// Tracker noise for the gravity cases, mm per axis (the sag is a fraction of a mm).
+const GRAVITY_NOISE_SIGMA_MM: f64 = 0.05;
+/// Rotation step of the rotation runs for three tubes, degrees (three rotation runs:
+/// about 1,000 rows in all, as for two tubes at the default 3 degrees).
+const THREE_TUBE_ROTATION_STEP_DEG: f64 = 4.0;
+/// Random-walk rows for three tubes.
+const THREE_TUBE_WALK_ROWS: usize = 250;
+
+fn shared() -> PathBuf {
+    std::env::var_os("CTR_SHARED_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        PathBuf::from,
+    )
+}
+
+/// One blind case: the world and the measurement.
+struct Case {
+    name: &'static str,
+    robot: &'static str,
+    /// Torsion concealed: the world is the torsion model, the user's the rigid one.
+    torsion: bool,
+    effects: Effects,
+    seed: u64,
+    noise_sigma_mm: f64,
+    outlier_fraction: f64,
+}
+
+impl Case {
+    fn new(name: &'static str, robot: &'static str, seed: u64) -> Self {
+        Case {
+            name,
+            robot,
+            torsion: false,
+            effects: Effects::default(),
+            seed,
+            noise_sigma_mm: SynthSpec::default().noise_sigma_mm,
+            outlier_fraction: 0.0,
+        }
+    }
+
+    fn effects(mut self, effects: Effects) -> Self {
+        self.effects = effects;
+        self
+    }
+
+    fn torsion(mut self) -> Self {
+        self.torsion = true;
+        self
+    }
+
+    fn sigma(mut self, sigma_mm: f64) -> Self {
+        self.noise_sigma_mm = sigma_mm;
+        self
+    }
+
+    fn outliers(mut self, fraction: f64) -> Self {
+        self.outlier_fraction = fraction;
+        self
+    }
+
+    fn expected(&self) -> Vec<&'static str> {
+        let mut e = self.effects.present();
+        if self.torsion {
+            e.push("torsion");
+        }
+        e.sort_unstable();
+        e
+    }
+}
+
+fn print_trials(d: &Diagnosis) {
+    let r = &d.report;
+    for t in &r.tried {
+        eprintln!(
+            "   round {} {:>13}: fit {:.4} held {:.4} bic {:>9.1} {}{}",
+            t.round,
+            t.effect.as_str(),
+            t.rms_mm,
+            t.heldout_rms_mm,
+            t.bic_change,
+            if t.added { "ADDED " } else { "" },
+            t.note
+        );
+    }
+}
+
+/// The measurement of a case: the shared recordings' sampling, about 1,000 rows.
+fn synth_spec(case: &Case, n_tubes: usize) -> SynthSpec {
+    let default = SynthSpec::default();
+    let three = n_tubes >= 3;
+    SynthSpec {
+        seed: case.seed,
+        noise_sigma_mm: case.noise_sigma_mm,
+        outlier_fraction: case.outlier_fraction,
+        rotation_step_deg: if three {
+            THREE_TUBE_ROTATION_STEP_DEG
+        } else {
+            default.rotation_step_deg
+        },
+        walk_rows: if three {
+            THREE_TUBE_WALK_ROWS
+        } else {
+            default.walk_rows
+        },
+        file: format!("{}.csv", case.name),
+        ..default
+    }
+}
+
+fn run(case: Case) {
+    let started = std::time::Instant::now();
+    let data = shared();
+    let spec = RobotSpec::from_path(&data.join(format!("robots/{}.toml", case.robot))).unwrap();
+    let manifest = std::fs::read_to_string(data.join("manifest.json")).unwrap();
+    let ranges = Ranges::from_manifest(&manifest, case.robot).unwrap();
+    let user = ModelSpec {
+        robot: spec.robot,
+        model: if case.torsion {
+            Model::Rigid
+        } else {
+            Model::Torsion
+        },
+        effects: Effects::default(),
+    };
+    let world = ModelSpec {
+        robot: spec.robot,
+        model: Model::Torsion,
+        effects: case.effects.clone(),
+    };
+    let gen = generate(&world, &ranges, &synth_spec(&case, spec.robot.n_tubes())).unwrap();
+    assert_eq!(gen.failed, 0, "{}: the world's solves converge", case.name);
+    let rec = &gen.recording;
+    if let Some(dir) = std::env::var_os("CTR_SYNTH_OUT") {
+        let path = PathBuf::from(dir).join(format!("{}.csv", case.name));
+        write_csv(rec, std::fs::File::create(&path).unwrap()).unwrap();
+    }
+    let floor = gen.noise_floor_rms_mm();
+    // what the concealed physics moves the tip by (user model vs the noiseless world)
+    let all: Vec<usize> = (0..rec.runs.len()).collect();
+    let user_p = predict(&user, rec, &all).unwrap().p;
+    let magnitude = (user_p
+        .iter()
+        .zip(&gen.clean)
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / rec.rows.len() as f64)
+        .sqrt();
+
+    let gen_time = started.elapsed();
+    let d = diagnose(&user, rec, &Options::default()).unwrap();
+    let r = &d.report;
+    let mut found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
+    let order = found.join(", ");
+    found.sort_unstable();
+    let expected = case.expected();
+
+    // held-out RMS of the fitted model over the held-out inlier rows
+    let (held, _) = split(rec, &Options::default().holdout).unwrap();
+    let fitted_p = predict(&d.fitted, rec, &all).unwrap().p;
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (i, row) in rec.rows.iter().enumerate() {
+        if held[i] && gen.outlier_rows.binary_search(&i).is_err() {
+            sum += (0..3)
+                .map(|k| (fitted_p[i][k] - row.p[k]).powi(2))
+                .sum::<f64>();
+            count += 1;
+        }
+    }
+    let final_heldout = if gen.outlier_rows.is_empty() {
+        r.final_.heldout_rms_mm
+    } else {
+        (sum / count as f64).sqrt()
+    };
+    let ok = found == expected && final_heldout <= FLOOR_TOLERANCE * floor;
+    eprintln!(
+        "{} [{}] {}: truth {} {} -> found [{order}]; {} rows, {} outliers; effect {magnitude:.3} mm; \
+         baseline held-out {:.3} -> final held-out {final_heldout:.3} (report {:.3}), floor {floor:.3} \
+         (ratio {:.2}), noise est {:.3}; {:.1} s (generation {:.1} s)",
+        if ok { "PASS" } else { "FAIL" },
+        case.name,
+        case.robot,
+        if case.torsion { "torsion +" } else { "" },
+        serde_json::to_string(&case.effects).unwrap(),
+        rec.rows.len(),
+        gen.outlier_rows.len(),
+        r.baseline.heldout_rms_mm,
+        r.final_.heldout_rms_mm,
+        final_heldout / floor,
+        r.noise.rms_mm,
+        started.elapsed().as_secs_f64(),
+        gen_time.as_secs_f64(),
+    );
+    for f in &r.findings {
+        eprintln!("   found {}: {}", f.effect.as_str(), f.parameters);
+    }
+    if !ok || std::env::var_os("CTR_BLIND_VERBOSE").is_some() {
+        print_trials(&d);
+        eprintln!("   {}", r.unexplained);
+    }
+    assert_eq!(found, expected, "{}: findings", case.name);
+    assert!(
+        final_heldout <= FLOOR_TOLERANCE * floor,
+        "{}: held-out RMS {final_heldout:.4} above {FLOOR_TOLERANCE} x floor {floor:.4}",
+        case.name
+    );
+}
+
+fn joint_offset(n: usize, tube: usize, feed_mm: f64, rotation_deg: f64) -> JointOffset {
+    let mut o = JointOffset {
+        feed_mm: vec![0.0; n],
+        rotation_deg: vec![0.0; n],
+    };
+    o.feed_mm[tube] = feed_mm;
+    o.rotation_deg[tube] = rotation_deg;
+    o
+}
+
+fn factors(n: usize, tube: usize, factor: f64) -> Vec<f64> {
+    let mut f = vec![1.0; n];
+    f[tube] = factor;
+    f
+}
+
+fn clearance(max_deg: &[f64], peak_deg: &[f64]) -> Clearance {
+    Clearance {
+        max_deflection_deg: max_deg.to_vec(),
+        peak_deg: peak_deg.to_vec(),
+        table_deg: Vec::new(),
+    }
+}
+
+fn friction(play_deg: &[f64]) -> Friction {
+    Friction {
+        rotation_play_deg: play_deg.to_vec(),
+        feed_play_mm: Vec::new(),
+    }
+}
+
+fn registration(rotation_vector_deg: [f64; 3], translation_mm: [f64; 3]) -> Registration {
+    Registration::from_rotation_vector(rotation_vector_deg, translation_mm)
+}
+
+// ---- clean recordings: no findings allowed ----
+
+#[test]
+fn clean_liu2023() {
+    run(Case::new("clean_liu2023", "liu2023", 11));
+}
+
+#[test]
+fn clean_nitinol2() {
+    run(Case::new("clean_nitinol2", "nitinol2", 12));
+}
+
+#[test]
+fn clean_nitinol3() {
+    run(Case::new("clean_nitinol3", "nitinol3", 13));
+}
+
+// ---- each effect alone ----
+
+#[test]
+fn torsion_nitinol2() {
+    run(Case::new("torsion_nitinol2", "nitinol2", 21).torsion());
+}
+
+#[test]
+fn torsion_nitinol3() {
+    run(Case::new("torsion_nitinol3", "nitinol3", 22).torsion());
+}
+
+#[test]
+fn friction_liu2023() {
+    run(
+        Case::new("friction_liu2023", "liu2023", 23).effects(Effects {
+            friction: Some(friction(&[5.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn friction_nitinol3() {
+    run(
+        Case::new("friction_nitinol3", "nitinol3", 24).effects(Effects {
+            friction: Some(friction(&[3.0, 6.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn clearance_nitinol2() {
+    run(
+        Case::new("clearance_nitinol2", "nitinol2", 25).effects(Effects {
+            clearance: Some(clearance(&[2.5], &[60.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn clearance_liu2023() {
+    run(
+        Case::new("clearance_liu2023", "liu2023", 26).effects(Effects {
+            clearance: Some(clearance(&[2.0], &[300.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn gravity_liu2023() {
+    run(Case::new("gravity_liu2023", "liu2023", 27)
+        .sigma(GRAVITY_NOISE_SIGMA_MM)
+        .effects(Effects {
+            gravity: Some(Gravity {
+                direction_w: [0.0, -1.0, 0.0],
+                g_m_s2: 9.81,
+            }),
+            ..Default::default()
+        }));
+}
+
+#[test]
+fn registration_nitinol2() {
+    run(
+        Case::new("registration_nitinol2", "nitinol2", 28).effects(Effects {
+            registration: Some(registration([0.4, 1.8, 0.3], [2.0, -3.0, 1.5])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn registration_nitinol3() {
+    run(
+        Case::new("registration_nitinol3", "nitinol3", 29).effects(Effects {
+            registration: Some(registration([-1.0, 0.5, 2.5], [-1.0, 4.0, -2.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn joint_offset_liu2023() {
+    run(
+        Case::new("joint_offset_liu2023", "liu2023", 30).effects(Effects {
+            joint_offset: Some(joint_offset(2, 1, 1.0, 5.0)),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn joint_offset_nitinol3() {
+    run(
+        Case::new("joint_offset_nitinol3", "nitinol3", 31).effects(Effects {
+            joint_offset: Some(joint_offset(3, 1, -1.0, 5.0)),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn stiffness_nitinol2() {
+    run(
+        Case::new("stiffness_nitinol2", "nitinol2", 32).effects(Effects {
+            stiffness: Some(Stiffness {
+                factor: factors(2, 1, 0.75),
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn stiffness_nitinol3() {
+    run(
+        Case::new("stiffness_nitinol3", "nitinol3", 33).effects(Effects {
+            stiffness: Some(Stiffness {
+                factor: factors(3, 0, 1.35),
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn precurvature_liu2023() {
+    run(
+        Case::new("precurvature_liu2023", "liu2023", 34).effects(Effects {
+            precurvature: Some(Precurvature {
+                radius_factor: factors(2, 1, 1.12),
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn precurvature_nitinol3() {
+    run(
+        Case::new("precurvature_nitinol3", "nitinol3", 35).effects(Effects {
+            precurvature: Some(Precurvature {
+                radius_factor: factors(3, 1, 0.88),
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn latency_nitinol2() {
+    run(
+        Case::new("latency_nitinol2", "nitinol2", 36).effects(Effects {
+            latency: Some(Latency { tau_s: 0.4 }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn latency_nitinol3() {
+    run(
+        Case::new("latency_nitinol3", "nitinol3", 37).effects(Effects {
+            latency: Some(Latency { tau_s: 0.7 }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn sensor_offset_nitinol2() {
+    run(
+        Case::new("sensor_offset_nitinol2", "nitinol2", 38).effects(Effects {
+            sensor_offset: Some(SensorOffset {
+                offset_mm: [0.0, 1.5, -3.0],
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn sensor_offset_liu2023() {
+    run(
+        Case::new("sensor_offset_liu2023", "liu2023", 39).effects(Effects {
+            sensor_offset: Some(SensorOffset {
+                offset_mm: [2.0, 0.0, -4.0],
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+// ---- pairs, the confusable ones above all ----
+
+#[test]
+fn latency_friction_liu2023() {
+    run(
+        Case::new("latency_friction_liu2023", "liu2023", 41).effects(Effects {
+            latency: Some(Latency { tau_s: 0.3 }),
+            friction: Some(friction(&[5.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn latency_friction_nitinol2() {
+    run(
+        Case::new("latency_friction_nitinol2", "nitinol2", 42).effects(Effects {
+            latency: Some(Latency { tau_s: 0.6 }),
+            friction: Some(friction(&[3.0])),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn registration_joint_offset_nitinol2() {
+    run(
+        Case::new("registration_joint_offset_nitinol2", "nitinol2", 43).effects(Effects {
+            registration: Some(registration([0.0, 1.0, 2.0], [3.0, 1.0, -2.0])),
+            joint_offset: Some(joint_offset(2, 1, 1.0, 5.0)),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn registration_joint_offset_nitinol3() {
+    run(
+        Case::new("registration_joint_offset_nitinol3", "nitinol3", 44).effects(Effects {
+            registration: Some(registration([1.5, 0.0, -1.5], [-2.0, 2.0, 3.0])),
+            joint_offset: Some(joint_offset(3, 2, 1.0, -5.0)),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn registration_joint_offset_outer_liu2023() {
+    // the outer tube's rotation offset turns the whole robot except the inner tube's
+    // relative angle: closest to the registration's rotation about z
+    run(
+        Case::new("registration_joint_offset_outer_liu2023", "liu2023", 50).effects(Effects {
+            registration: Some(registration([0.5, 0.0, 2.0], [-2.0, 1.0, 2.0])),
+            joint_offset: Some(joint_offset(2, 0, 1.0, 5.0)),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+#[ignore = "known failure, reported to diagnose: precurvature alone lands in a wrong basin, then registration and a 42 m/s^2 gravity; 1.8 x floor"]
+fn stiffness_precurvature_nitinol2() {
+    run(
+        Case::new("stiffness_precurvature_nitinol2", "nitinol2", 45).effects(Effects {
+            stiffness: Some(Stiffness {
+                factor: factors(2, 1, 1.3),
+            }),
+            precurvature: Some(Precurvature {
+                radius_factor: factors(2, 0, 0.9),
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+#[ignore = "known failure, reported to diagnose: round 1 puts the radius change on the wrong tube; stiffness fitted with it held gains < 2 %; ends at 3.1 x floor with registration"]
+fn stiffness_precurvature_liu2023() {
+    run(
+        Case::new("stiffness_precurvature_liu2023", "liu2023", 46).effects(Effects {
+            stiffness: Some(Stiffness {
+                factor: factors(2, 0, 0.75),
+            }),
+            precurvature: Some(Precurvature {
+                radius_factor: factors(2, 1, 1.1),
+            }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+fn clearance_latency_nitinol2() {
+    run(
+        Case::new("clearance_latency_nitinol2", "nitinol2", 47).effects(Effects {
+            clearance: Some(clearance(&[3.0], &[150.0])),
+            latency: Some(Latency { tau_s: 0.5 }),
+            ..Default::default()
+        }),
+    );
+}
+
+#[test]
+#[ignore = "known failure, reported to diagnose: registration absorbs the mean sag in round 1; gravity fitted with registration held gains on fit rows but not held out (0.1015 vs 0.1001 mm)"]
+fn gravity_registration_liu2023() {
+    run(Case::new("gravity_registration_liu2023", "liu2023", 48)
+        .sigma(GRAVITY_NOISE_SIGMA_MM)
+        .effects(Effects {
+            gravity: Some(Gravity {
+                direction_w: [-1.0, 0.0, 0.0],
+                g_m_s2: 9.81,
+            }),
+            registration: Some(registration([0.0, 0.0, 1.5], [1.0, 2.0, 0.0])),
+            ..Default::default()
+        }));
+}
+
+#[test]
+#[ignore = "known failure, reported to diagnose: on a rigid user model the gravity candidate runs the loaded (torsion-compliant) solver and wins over torsion"]
+fn torsion_sensor_offset_nitinol3() {
+    run(Case::new("torsion_sensor_offset_nitinol3", "nitinol3", 49)
+        .torsion()
+        .effects(Effects {
+            sensor_offset: Some(SensorOffset {
+                offset_mm: [1.0, -1.0, -3.0],
+            }),
+            ..Default::default()
+        }));
+}
+
+// ---- outliers: 1 % of the rows jump by 5 mm; the findings must not change ----
+
+#[test]
+fn outliers_clean_nitinol2() {
+    run(Case::new("outliers_clean_nitinol2", "nitinol2", 51).outliers(0.01));
+}
+
+#[test]
+fn outliers_clearance_liu2023() {
+    run(Case::new("outliers_clearance_liu2023", "liu2023", 52)
+        .outliers(0.01)
+        .effects(Effects {
+            clearance: Some(clearance(&[2.5], &[205.0])),
+            ..Default::default()
+        }));
+}
+
+#[test]
+fn outliers_latency_friction_nitinol3() {
+    run(
+        Case::new("outliers_latency_friction_nitinol3", "nitinol3", 53)
+            .outliers(0.01)
+            .effects(Effects {
+                latency: Some(Latency { tau_s: 0.25 }),
+                friction: Some(friction(&[4.0, 4.0])),
+                ..Default::default()
+            }),
+    );
+}
+
+// ---- the generator itself ----
+
+#[test]
+fn generated_recording_round_trips_through_csv() {
+    let data = shared();
+    let spec = RobotSpec::from_path(&data.join("robots/nitinol3.toml")).unwrap();
+    let manifest = std::fs::read_to_string(data.join("manifest.json")).unwrap();
+    let ranges = Ranges::from_manifest(&manifest, "nitinol3").unwrap();
+    let case = Case::new("round_trip", "nitinol3", 5).outliers(0.01);
+    let world = ModelSpec {
+        robot: spec.robot,
+        model: Model::Torsion,
+        effects: Effects {
+            latency: Some(Latency { tau_s: 0.3 }),
+            ..Default::default()
+        },
+    };
+    let synth = synth_spec(&case, 3);
+    let a = generate(&world, &ranges, &synth).unwrap();
+    let b = generate(&world, &ranges, &synth).unwrap();
+    assert_eq!(a, b, "a seed fixes the recording");
+    let rows = a.recording.rows.len();
+    assert!((600..=1100).contains(&rows), "{rows} rows");
+    assert_eq!(a.outlier_rows.len(), (0.01 * rows as f64).round() as usize);
+    let labels: Vec<&str> = a.recording.runs.iter().map(|r| r.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "feed",
+            "feed-b",
+            "rot-outer",
+            "rot-middle",
+            "rot-inner",
+            "scatter"
+        ]
+    );
+    let mut csv = Vec::new();
+    write_csv(&a.recording, &mut csv).unwrap();
+    let back = ctr_analysis::formats::Recording::read(csv.as_slice(), &synth.file, 3).unwrap();
+    assert_eq!(back, a.recording);
+}
