@@ -18,6 +18,11 @@
 //! | gravity/warm (trajectory) | 4.7 us   | 5.3 us   |
 //!
 //! Targets for 3 tubes: warm <= 1 us, cold <= 2 us, gravity <= 10 us.
+//!
+//! `torsion+jacobian/warm`: the warm solve plus the 6 x 2N joint Jacobian (one
+//! dual-number pass, `ctr_core::jacobian`). Measured 2026-11 on the same VM while other
+//! builds ran (`taskset -c 1`, nitinol3): 4.2 us median, with torsion/warm 1.06 us in
+//! the same run (target <= 4 us; not yet met on this machine).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ctr_core::{Joints, Model, Robot, Solver};
