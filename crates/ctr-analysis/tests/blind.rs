@@ -545,7 +545,6 @@ fn registration_joint_offset_outer_liu2023() {
 }
 
 #[test]
-#[ignore = "known failure, reported to diagnose: precurvature alone lands in a wrong basin, then registration and a 42 m/s^2 gravity; 1.8 x floor"]
 fn stiffness_precurvature_nitinol2() {
     run(
         Case::new("stiffness_precurvature_nitinol2", "nitinol2", 45).effects(Effects {
@@ -561,7 +560,6 @@ fn stiffness_precurvature_nitinol2() {
 }
 
 #[test]
-#[ignore = "known failure, reported to diagnose: round 1 puts the radius change on the wrong tube; stiffness fitted with it held gains < 2 %; ends at 3.1 x floor with registration"]
 fn stiffness_precurvature_liu2023() {
     run(
         Case::new("stiffness_precurvature_liu2023", "liu2023", 46).effects(Effects {
@@ -588,7 +586,6 @@ fn clearance_latency_nitinol2() {
 }
 
 #[test]
-#[ignore = "known failure, reported to diagnose: registration absorbs the mean sag in round 1; gravity fitted with registration held gains on fit rows but not held out (0.1015 vs 0.1001 mm)"]
 fn gravity_registration_liu2023() {
     run(Case::new("gravity_registration_liu2023", "liu2023", 48)
         .sigma(GRAVITY_NOISE_SIGMA_MM)
@@ -603,7 +600,6 @@ fn gravity_registration_liu2023() {
 }
 
 #[test]
-#[ignore = "known failure, reported to diagnose: on a rigid user model the gravity candidate runs the loaded (torsion-compliant) solver and wins over torsion"]
 fn torsion_sensor_offset_nitinol3() {
     run(Case::new("torsion_sensor_offset_nitinol3", "nitinol3", 49)
         .torsion()

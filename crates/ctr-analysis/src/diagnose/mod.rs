@@ -394,6 +394,11 @@ fn not_applicable(effect: EffectId, model: &ModelSpec, rec: &Recording) -> Optio
         EffectId::Gravity if !densities => {
             Some("not tried: the robot file gives no density_kg_m3 for every tube".into())
         }
+        EffectId::Gravity if model.model == ctr_core::Model::Rigid => Some(
+            "not tried on a rigid model: the loaded solver models torsion too, so a gravity \
+             fit would also bring torsion in (torsion is tried first)"
+                .into(),
+        ),
         EffectId::Gravity if model.effects.clearance.is_some() => {
             Some("not tried: gravity together with clearance is not modelled".into())
         }
@@ -532,13 +537,18 @@ pub fn diagnose(
             .iter()
             .flat_map(|&c| c.starts(n, period).into_iter().map(move |x0| (c, x0)))
             .collect();
+        // each candidate is fitted together with the effects found so far, which stay
+        // free: a first effect that soaked up part of another must be able to give it back
+        let held_x: Vec<f64> = accepted.iter().flat_map(|b| b.read(&current)).collect();
+        let with = |c: EffectId| -> Vec<EffectId> { accepted.iter().copied().chain([c]).collect() };
         let results = run_pool(threads, &jobs, |(c, x0)| {
-            let mut p = problem(current.clone(), vec![*c]);
+            let mut p = problem(current.clone(), with(*c));
             p.threads = 1;
-            p.fit(x0, MAX_FIT_ITERATIONS)
+            let x: Vec<f64> = held_x.iter().chain(x0).copied().collect();
+            p.fit(&x, MAX_FIT_ITERATIONS)
         });
         for &c in &todo {
-            let p = problem(current.clone(), vec![c]);
+            let p = problem(current.clone(), with(c));
             let fitted = jobs
                 .iter()
                 .zip(&results)
