@@ -9,9 +9,10 @@
 //!
 //! The Python package (`python/ctr_py`) re-exports this module's classes beside its
 //! pure-Python exception classes; `_ctr.pyi` there documents the Python API.
-//! Recording, diagnosis and calibration (`ctr_py.read_recording`, `ctr_py.diagnose`,
-//! `ctr_py.calibrate`) will be module functions registered in [`ctr_module`] next to
-//! [`robot::Robot`], each in a file of its own, once `ctr-analysis` has them.
+//! Recordings, diagnosis, calibration and evaluation (`ctr_py.read_recording`,
+//! `ctr_py.diagnose`, `ctr_py.calibrate`, `ctr_py.evaluate`) are module functions in
+//! [`recording`] and [`diagnosis`], over `ctr_analysis::diagnose`, as `ctr-cli diagnose`
+//! calls it.
 //!
 //! Rust tests here never start an interpreter (see the toolchain notes): the Python
 //! side is tested with pytest under `tests/python/`.
@@ -19,14 +20,22 @@
 use pyo3::prelude::*;
 
 mod arrays;
+mod diagnosis;
 mod errors;
 mod parallel;
+mod recording;
 mod robot;
 
 /// The extension module `ctr_py._ctr`.
 #[pymodule(name = "_ctr")]
 fn ctr_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<robot::Robot>()?;
+    m.add_class::<recording::Recording>()?;
+    m.add_class::<diagnosis::Report>()?;
+    m.add_function(wrap_pyfunction!(recording::read_recording, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnosis::calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnosis::evaluate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

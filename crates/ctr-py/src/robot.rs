@@ -28,7 +28,7 @@ const TARGET_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz
 /// `ctr-cli ik --orientation-tolerance-deg`'s default.
 const CLI_ORIENTATION_TOLERANCE_DEG: f64 = 0.0057;
 /// Most worker threads a call may ask for (each is an OS thread).
-const MAX_THREADS: usize = 1024;
+pub(crate) const MAX_THREADS: usize = 1024;
 /// How far from 1 a target quaternion's norm may be (it is then normalised).
 const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 
@@ -54,7 +54,7 @@ fn cli_ik_options() -> IkOptions {
 }
 
 /// `threads` checked: 0 (all cores) to [`MAX_THREADS`].
-fn threads_arg(threads: usize) -> PyResult<usize> {
+pub(crate) fn threads_arg(threads: usize) -> PyResult<usize> {
     if threads > MAX_THREADS {
         return Err(errors::input(format!(
             "threads: {threads} is not in 0..={MAX_THREADS} (0 = all cores)"
@@ -133,13 +133,24 @@ fn solver_failed(
 }
 
 impl Robot {
-    fn new(spec: RobotSpec, source: String) -> Self {
+    /// A robot of `spec`; errors name the file `source`.
+    pub(crate) fn new(spec: RobotSpec, source: String) -> Self {
         Robot {
             spec,
             source,
             ik: Default::default(),
             jacobian: Default::default(),
         }
+    }
+
+    /// The robot file's contents.
+    pub(crate) fn spec(&self) -> &RobotSpec {
+        &self.spec
+    }
+
+    /// The file name errors give.
+    pub(crate) fn source_name(&self) -> &str {
+        &self.source
     }
 
     fn n_joints(&self) -> usize {

@@ -24,10 +24,14 @@ Conventions of every call:
   registration: positions and orientations are in the measuring frame). Time effects
   (``latency``, ``friction`` with a non-zero play) need the rows' times: see
   :meth:`Robot.fk`.
+- Recordings (:func:`read_recording`) are diagnosed, calibrated and evaluated by
+  :func:`diagnose`, :func:`calibrate` and :func:`evaluate`, the library calls of
+  ``ctr-cli diagnose``, ``calibrate`` and ``evaluate`` with the same options and
+  messages; the :class:`Report` is the JSON report ``--report`` writes.
 """
 
 from os import PathLike
-from typing import Literal, Optional, Tuple, Union, overload
+from typing import Any, Iterable, List, Literal, Optional, Sequence, Tuple, TypedDict, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -241,3 +245,306 @@ class Robot:
         raises :class:`~ctr_py.InputError` naming ``model.effects.latency`` /
         ``friction``, with the CLI's message.
         """
+
+
+# ---------------------------------------------------------------- recordings, diagnosis
+
+PathArg = Union[str, "PathLike[str]"]
+EffectId = Literal[
+    "torsion",
+    "friction",
+    "clearance",
+    "gravity",
+    "registration",
+    "joint_offset",
+    "stiffness",
+    "precurvature",
+    "latency",
+    "sensor_offset",
+]
+"""The contract's effect ids (``shared/spec/formats.md``)."""
+
+class Recording:
+    """A recording of the real robot: commanded joints and measured tips, row by row, in
+    runs (``shared/spec/formats.md``), read by :func:`read_recording`.
+
+    Columns come out as new float64 numpy arrays (``m`` rows, ``n`` tubes).
+    ``len(recording)`` is ``m``. Immutable, comparable with ``==`` and picklable: it
+    pickles as its rows, every value exact (not as a path), so it can be sent to
+    worker processes without the file.
+    """
+
+    def __len__(self) -> int: ...
+    def __eq__(self, other: object) -> bool: ...
+    def __reduce__(self) -> tuple[object, tuple[Any]]: ...
+    @property
+    def file(self) -> str:
+        """The file name errors give: the path as given to :func:`read_recording`."""
+    @property
+    def n_tubes(self) -> int:
+        """The tube count the joint columns were read for."""
+    @property
+    def joint_columns(self) -> list[str]:
+        """``["s1_mm", "theta1_deg", ...]``: the columns of :attr:`joints`."""
+    @property
+    def has_time(self) -> bool:
+        """Whether the file has a ``t_s`` column."""
+    @property
+    def t_s(self) -> F64:
+        """Times, s, ``(m,)``; the row's index in the file when there is no ``t_s``
+        column. Non-decreasing within each run."""
+    @property
+    def joints(self) -> F64:
+        """Commanded joints ``(m, 2n)``, file order and units (``s1_mm, theta1_deg,
+        ...``): what :meth:`Robot.fk` takes."""
+    @property
+    def tip(self) -> F64:
+        """Measured tip positions ``(m, 3)``, mm (``x_mm, y_mm, z_mm``)."""
+    @property
+    def quaternion(self) -> Optional[F64]:
+        """Measured orientations ``(m, 4)`` (``qw, qx, qy, qz``), or ``None`` when the
+        file has no such columns."""
+    @property
+    def force_n(self) -> Optional[F64]:
+        """Known tip forces in W ``(m, 3)``, N (``fx_n, fy_n, fz_n``, e.g. hung
+        weights), or ``None`` when the file has no such columns."""
+    @property
+    def run(self) -> npt.NDArray[np.str_]:
+        """The run label of every row, ``(m,)`` (``"all"`` when the file has no
+        ``run`` column)."""
+    @property
+    def runs(self) -> list[Tuple[str, slice]]:
+        """The runs in file order: ``(label, rows)`` with ``rows`` a slice, e.g.
+        ``recording.joints[rows]``. A run is a contiguous block of rows with one
+        label; time effects (friction, latency) start afresh at each run, so call
+        :meth:`Robot.fk` once per run with ``t_s=recording.t_s[rows]``."""
+    @property
+    def lines(self) -> npt.NDArray[np.int64]:
+        """The line of every row in the file, ``(m,)`` (the header is line 1)."""
+
+def read_recording(
+    path: PathArg, robot: Optional[Robot] = None, *, n_tubes: Optional[int] = None
+) -> Recording:
+    """Reads a recording CSV as ``ctr-cli diagnose --recording`` reads it.
+
+    The robot (or ``n_tubes``, 1 to 4) gives the joint columns: ``s1_mm, theta1_deg,
+    ..., x_mm, y_mm, z_mm`` are required; ``t_s``, ``run``, ``qw, qx, qy, qz`` and
+    ``fx_n, fy_n, fz_n`` are optional; other columns are ignored. Within a run time
+    must not decrease.
+
+    Raises :class:`~ctr_py.FileError` (an ``OSError``) when the file cannot be read
+    and :class:`~ctr_py.InputError` (a ``ValueError``) for a bad file (a missing
+    column, a cell that is not a finite number, a ragged row, time going backwards,
+    no rows) with the message ``ctr-cli`` prints, e.g. ``rec.csv:1: missing column
+    s3_mm (the header needs ...)``. Giving neither or contradicting ``robot`` and
+    ``n_tubes`` raises :class:`~ctr_py.InputError`.
+    """
+
+class Figures(TypedDict):
+    """Error figures of a model on a recording, mm (typing only: a dict at run time)."""
+
+    rms_mm: float
+    """RMS tip error over the fit rows."""
+    max_mm: float
+    """Largest tip error over the fit rows."""
+    heldout_rms_mm: float
+    """RMS tip error over the held-out rows."""
+
+Finding = TypedDict(
+    "Finding",
+    {
+        "effect": EffectId,
+        "explanation": str,
+        "where": str,
+        "parameters": Any,
+        "rms_mm_before": float,
+        "rms_mm_after": float,
+        "heldout_rms_mm_before": float,
+        "heldout_rms_mm_after": float,
+    },
+)
+"""One effect found (typing only: a dict at run time): its id, what the model leaves
+out in words with the fitted values, where it shows, its fitted parameters as the
+robot file's ``[model.effects.<id>]`` table writes them, and the fit-row and held-out
+RMS before and after adding it, mm."""
+
+class Noise(TypedDict):
+    """The noise estimated from the data (typing only)."""
+
+    sigma_mm_per_axis: float
+    rms_mm: float
+    method: str
+
+class Split(TypedDict):
+    """The split of the rows into fit and held-out rows (typing only)."""
+
+    method: str
+    fit_rows: int
+    heldout_rows: int
+
+class Statement(TypedDict):
+    """A pattern of the user model's error (typing only)."""
+
+    kind: str
+    """``run``, ``offset``, ``grows_with``, ``periodic``, ``direction`` or
+    ``workspace``."""
+    feature: str
+    explained: float
+    """Share of the squared error the pattern explains, 0..1."""
+    text: str
+
+class Trial(TypedDict):
+    """One candidate fitted in one round of the search (typing only). The figures are
+    ``None`` (JSON ``null``) for a candidate that was not tried."""
+
+    round: int
+    effect: EffectId
+    rms_mm: Optional[float]
+    heldout_rms_mm: Optional[float]
+    bic_change: Optional[float]
+    added: bool
+    note: str
+
+class RunErrors(TypedDict):
+    """Tip errors of one run under each model of :func:`evaluate` (typing only)."""
+
+    run: str
+    rows: int
+    mean_mm: List[float]
+    max_mm: List[float]
+
+class Report:
+    """The mismatch report of :func:`diagnose` or :func:`calibrate`: the JSON report
+    ``ctr-cli diagnose --report`` writes (``shared/spec/formats.md``: ``baseline``,
+    ``findings``, ``final``, ``unexplained``; with this project's ``noise``,
+    ``split``, ``located``, ``tried``, ``failed_rows``), the summary the CLI prints and
+    the fitted model.
+
+    The attributes are fresh plain Python values on every access (changing them does
+    not change the report). Immutable, comparable with ``==`` and picklable.
+    """
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain dicts, lists, str, int, float and bool: equal to
+        ``json.load`` of the file ``ctr-cli diagnose --report`` writes for the same
+        robot, recording and options, to the last bit (a figure that does not exist,
+        ``NaN`` in Rust, is ``None``, as JSON writes it)."""
+    def to_json(self, indent: bool = True) -> str:
+        """The report's JSON text: with ``indent`` exactly the file ``--report``
+        writes (two-space indents, a final newline), else compact."""
+    def summary(self) -> str:
+        """The plain-language summary ``ctr-cli diagnose`` prints: the error of the
+        user model and where it sits, each finding with its held-out gain, and what
+        is left."""
+    @property
+    def fitted(self) -> Robot:
+        """The fitted model: the robot with its ``[model]`` and the effects found (or
+        calibrated) in ``[model.effects]``, fitted. ``fitted.to_toml()`` is the file
+        ``ctr-cli diagnose --out`` writes, without its comment line;
+        ``fitted.fk(recording.joints)`` (per run with ``t_s=`` for time effects)
+        gives the model's tips. Its :attr:`Robot.source` is the robot's with
+        ``" (fitted)"``."""
+    @property
+    def recording(self) -> str:
+        """The recording's file name."""
+    @property
+    def effects(self) -> list[str]:
+        """The ids of the effects found, in the order added."""
+    @property
+    def baseline(self) -> Figures:
+        """The user model's figures."""
+    @property
+    def findings(self) -> list[Finding]:
+        """The effects found, in the order added (for :func:`calibrate`: one per
+        effect fitted, all with the same before and after)."""
+    @property
+    def final(self) -> Figures:
+        """The fitted model's figures."""
+    @property
+    def unexplained(self) -> str:
+        """What is left, in words (whether it is consistent with the noise)."""
+    @property
+    def noise(self) -> Noise:
+        """The noise estimated from the data (second differences along the runs)."""
+    @property
+    def split(self) -> Split:
+        """The split used."""
+    @property
+    def located(self) -> list[Statement]:
+        """Where the user model's error sits, strongest pattern first."""
+    @property
+    def tried(self) -> list[Trial]:
+        """Every candidate fitted, round by round (empty for :func:`calibrate`)."""
+    @property
+    def failed_rows(self) -> int:
+        """Rows whose solve did not converge under the fitted model."""
+    def __eq__(self, other: object) -> bool: ...
+    def __reduce__(self) -> tuple[object, tuple[str, str, Robot, str]]: ...
+
+RecordingArg = Union[Recording, PathArg]
+
+def diagnose(
+    robot: Robot,
+    recording: RecordingArg,
+    *,
+    holdout: Optional[str] = None,
+    effects: Optional[Union[str, Iterable[str]]] = None,
+    threads: Optional[int] = None,
+) -> Report:
+    """Diagnoses the robot's model against a recording: ``ctr-cli diagnose``.
+
+    Splits the rows (``holdout``), estimates the noise, locates the error, then adds
+    the left-out effects that explain it, one at a time, each fitted and kept only
+    when it lowers the error on the held-out rows; see the README and
+    ``ctr_analysis::diagnose``. The report equals the CLI's for the same inputs.
+
+    ``recording``: a :class:`Recording` read for the robot's tube count, or a path
+    (read with the robot's joint columns). ``holdout``: ``"blocks:K"`` (each run in
+    contiguous blocks, one in K held out; ``None`` means ``"blocks:4"``) or
+    ``"runs:LABEL,LABEL"`` (those runs held out whole), the CLI's ``--holdout``.
+    ``effects``: the effect ids to try (a list, or a comma-separated str as the
+    CLI's ``--effects``); ``None`` tries all ten. ``threads``: worker threads,
+    ``None`` or 0 for all cores (results do not depend on it). The GIL is released
+    while it runs (about a second for a thousand rows on two cores).
+
+    Raises :class:`~ctr_py.InputError` with the CLI's message for an unknown effect
+    id, a bad holdout string, a holdout run label the recording lacks, a split
+    leaving no fit or no held-out rows, a recording read for another tube count, or
+    a model that cannot be simulated on the recording;
+    :class:`~ctr_py.InputTypeError` for arguments of the wrong type; reading a path
+    raises as :func:`read_recording`.
+    """
+
+def calibrate(
+    robot: Robot,
+    recording: RecordingArg,
+    fit: Union[str, Iterable[str]],
+    *,
+    table: Optional[int] = None,
+    holdout: Optional[str] = None,
+    threads: Optional[int] = None,
+) -> Report:
+    """Fits the parameters of the named effects together, without the search:
+    ``ctr-cli calibrate --fit``. For a lab that knows what to identify: a clearance
+    profile, the stiffness from tip deflections under known hung weights (a recording
+    with ``fx_n, fy_n, fz_n``), ... Effects the model already has are refitted from
+    their values. The report has one finding per effect (before: the user model;
+    after: all fitted) and no ``tried``.
+
+    ``table`` (3 to 72, with ``fit=["clearance"]``): the clearance as a smooth table
+    of that many values per pair over one turn instead of a cosine profile.
+    ``holdout`` and ``threads`` as for :func:`diagnose`. Raises as :func:`diagnose`,
+    and :class:`~ctr_py.InputError` for an empty ``fit``, a ``table`` out of range or
+    an effect the recording cannot show (latency without ``t_s``, ...).
+    """
+
+def evaluate(
+    robots: Union[Robot, Sequence[Robot]], recording: RecordingArg
+) -> list[RunErrors]:
+    """Mean and largest tip error per run for each model: ``ctr-cli evaluate``.
+
+    One dict per run in file order, then one for the whole recording (``run ==
+    "all"``), with ``mean_mm`` and ``max_mm`` lists in the order of ``robots``. All
+    robots must have the same tube count (the CLI's message otherwise), that of the
+    recording.
+    """

@@ -1,0 +1,620 @@
+//! `ctr_py.diagnose`, `ctr_py.calibrate`, `ctr_py.evaluate` and `ctr_py.Report`: the
+//! calls of `ctr-cli diagnose`, `calibrate` and `evaluate` on a `Robot` and a
+//! `Recording`, with the CLI's options (the same strings for `holdout` and the
+//! effects) and messages.
+//!
+//! A `Report` keeps the report as the JSON text `ctr-cli diagnose --report` writes
+//! (`to_dict()` parses it with Python's `json`, so it equals the parsed CLI file
+//! exactly, `NaN` written as `null` included), the CLI's summary text and the fitted
+//! model as a `Robot` (the robot file `--out` writes, without its comment line).
+
+use crate::errors;
+use crate::recording::{self, Recording};
+use crate::robot::{threads_arg, Robot, MAX_THREADS};
+use ctr_analysis::diagnose::{self as analysis, Diagnosis, EffectId, Holdout, Options};
+use ctr_analysis::formats::{self, RobotSpec};
+use ctr_analysis::simulate::ModelSpec;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString};
+use std::borrow::Cow;
+use std::path::PathBuf;
+
+/// `calibrate --table`'s range.
+const TABLE_RANGE: std::ops::RangeInclusive<usize> = 3..=72;
+
+/// A contract effect id, with `ctr-cli`'s message for an unknown one.
+fn parse_effect(s: &str) -> Result<EffectId, String> {
+    EffectId::parse(s.trim()).ok_or_else(|| {
+        format!(
+            "unknown effect {s:?}; the contract's ids are {}",
+            EffectId::ALL.map(EffectId::as_str).join(", ")
+        )
+    })
+}
+
+/// A split, `blocks:K` or `runs:LABEL,...`, with `ctr-cli`'s message for a bad one.
+fn parse_holdout(s: &str) -> Result<Holdout, String> {
+    let want = "wanted blocks:K (K >= 2) or runs:LABEL[,LABEL...]";
+    match s.split_once(':') {
+        Some(("blocks", k)) => match k.parse::<usize>() {
+            Ok(every) if every >= 2 => Ok(Holdout::Blocks { every }),
+            _ => Err(format!("{s:?}: {want}")),
+        },
+        Some(("runs", labels)) if !labels.trim().is_empty() => Ok(Holdout::Runs(
+            labels.split(',').map(|l| l.trim().to_owned()).collect(),
+        )),
+        _ => Err(format!("{s:?}: {want}")),
+    }
+}
+
+/// `holdout=`: `None` (the default split, blocks:4) or the CLI's string.
+fn holdout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Holdout> {
+    let Some(obj) = obj else {
+        return Ok(Holdout::default());
+    };
+    let s = obj.cast::<PyString>().map_err(|_| {
+        errors::input_type(format!(
+            "holdout: a {} is not a split (wanted a str, blocks:K or runs:LABEL[,LABEL...])",
+            type_name(obj)
+        ))
+    })?;
+    parse_holdout(&s.to_cow()?).map_err(|m| errors::input(format!("holdout: {m}")))
+}
+
+/// A list of effect ids: a comma-separated str or a sequence of str.
+fn effects_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<EffectId>> {
+    let ids: Vec<String> = if let Ok(s) = obj.cast::<PyString>() {
+        s.to_cow()?.split(',').map(str::to_owned).collect()
+    } else {
+        let not_ids = || {
+            errors::input_type(format!(
+                "{name}: a {} is not a list of effect ids (str)",
+                type_name(obj)
+            ))
+        };
+        let mut ids = Vec::new();
+        for item in obj.try_iter().map_err(|_| not_ids())? {
+            let item = item?;
+            let s = item.cast::<PyString>().map_err(|_| {
+                errors::input_type(format!(
+                    "{name}: a {} is not an effect id (a str such as \"clearance\")",
+                    type_name(&item)
+                ))
+            })?;
+            ids.push(s.to_cow()?.into_owned());
+        }
+        ids
+    };
+    ids.iter()
+        .map(|s| parse_effect(s).map_err(|m| errors::input(format!("{name}: {m}"))))
+        .collect()
+}
+
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_default()
+}
+
+/// `threads=`: `None` or 0 for all cores.
+fn threads_opt(threads: Option<i64>) -> PyResult<usize> {
+    match threads {
+        None => Ok(0),
+        Some(t) if t >= 0 => threads_arg(usize::try_from(t).unwrap_or(usize::MAX)),
+        Some(t) => Err(errors::input(format!(
+            "threads: {t} is not in 0..={} (0 = all cores)",
+            MAX_THREADS
+        ))),
+    }
+}
+
+/// The recording argument: a `Recording` of the robot's tube count, or a path read with
+/// the robot's joint columns.
+fn recording_arg<'a>(
+    py: Python<'_>,
+    obj: &'a Bound<'_, PyAny>,
+    robot: &Robot,
+) -> PyResult<Cow<'a, formats::Recording>> {
+    let n = robot.spec().robot.n_tubes();
+    if let Ok(r) = obj.cast::<Recording>() {
+        let rec = &r.get().rec;
+        if rec.n_tubes != n {
+            return Err(errors::input(format!(
+                "{}: {n} tubes, but the recording {} was read for {} (read_recording(path, \
+                 robot) reads the joint columns of the robot's tubes)",
+                robot.source_name(),
+                rec.file,
+                rec.n_tubes
+            )));
+        }
+        // the Recording lives as long as `obj`
+        return Ok(Cow::Borrowed(rec));
+    }
+    let path: PathBuf = obj.extract().map_err(|_| {
+        errors::input_type(format!(
+            "recording: a {} is not a ctr_py.Recording or a path",
+            type_name(obj)
+        ))
+    })?;
+    Ok(Cow::Owned(recording::read(py, &path, n)?))
+}
+
+/// The summary `ctr-cli diagnose` prints (the same text, line for line).
+fn summary(report: &analysis::Report, recording: &str) -> String {
+    let mut s = format!(
+        "{recording}: the model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out \
+         rows, largest {:.3} mm).\n",
+        report.baseline.rms_mm, report.baseline.heldout_rms_mm, report.baseline.max_mm
+    );
+    let patterns: Vec<&str> = report
+        .located
+        .iter()
+        .filter(|l| l.kind != "run")
+        .take(3)
+        .map(|l| l.text.as_str())
+        .collect();
+    if !patterns.is_empty() {
+        s += &format!("Where: the error {}.\n", patterns.join("; "));
+    }
+    if report.findings.is_empty() {
+        s += "No left-out effect explains part of it.\n";
+    }
+    for f in &report.findings {
+        s += &format!(
+            "{}\n  where: {}\n  held-out RMS {:.3} -> {:.3} mm (fit rows {:.3} -> {:.3} mm)\n",
+            f.explanation,
+            f.where_,
+            f.heldout_rms_mm_before,
+            f.heldout_rms_mm_after,
+            f.rms_mm_before,
+            f.rms_mm_after
+        );
+    }
+    s += &format!(
+        "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
+        report.final_.rms_mm, report.final_.heldout_rms_mm, report.unexplained
+    );
+    s
+}
+
+/// A diagnosis's or calibration's report; see `_ctr.pyi`.
+#[pyclass(frozen, module = "ctr_py", name = "Report")]
+pub struct Report {
+    /// The report as `ctr-cli --report` writes it (compact).
+    json: String,
+    /// The CLI's summary text.
+    summary: String,
+    /// The fitted model.
+    fitted: Py<Robot>,
+    /// The recording's file name.
+    recording: String,
+}
+
+impl Report {
+    fn new(
+        py: Python<'_>,
+        d: &Diagnosis,
+        robot: &Robot,
+        rec: &formats::Recording,
+    ) -> PyResult<Self> {
+        let json = serde_json::to_string(&d.report)
+            .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
+        let spec = robot.spec();
+        let fitted = RobotSpec {
+            model: d.fitted.model,
+            effects: d.fitted.effects.clone(),
+            ..spec.clone()
+        };
+        Ok(Report {
+            json,
+            summary: summary(&d.report, &rec.file),
+            fitted: Py::new(
+                py,
+                Robot::new(fitted, format!("{} (fitted)", robot.source_name())),
+            )?,
+            recording: rec.file.clone(),
+        })
+    }
+
+    fn item<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?.get_item(key)
+    }
+}
+
+#[pymethods]
+impl Report {
+    /// Rebuilds a pickled report.
+    #[staticmethod]
+    fn _from_state(
+        py: Python<'_>,
+        json: String,
+        summary: String,
+        fitted: Py<Robot>,
+        recording: String,
+    ) -> PyResult<Self> {
+        let ok = py
+            .import("json")?
+            .call_method1("loads", (&json,))
+            .is_ok_and(|v| v.is_instance_of::<PyDict>());
+        if !ok {
+            return Err(errors::input(
+                "Report state: the report is not a JSON object".into(),
+            ));
+        }
+        Ok(Report {
+            json,
+            summary,
+            fitted,
+            recording,
+        })
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (String, String, Py<Robot>, String))> {
+        let r = slf.get();
+        Ok((
+            slf.get_type().getattr("_from_state")?,
+            (
+                r.json.clone(),
+                r.summary.clone(),
+                r.fitted.clone_ref(slf.py()),
+                r.recording.clone(),
+            ),
+        ))
+    }
+
+    fn __eq__(&self, other: &Bound<'_, PyAny>) -> bool {
+        other.cast::<Report>().is_ok_and(|o| {
+            let o = o.get();
+            o.json == self.json
+                && o.recording == self.recording
+                && o.fitted.get().spec() == self.fitted.get().spec()
+        })
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let effects: Vec<String> = self.effects(py)?.iter().map(|e| format!("'{e}'")).collect();
+        Ok(format!(
+            "Report(recording='{}', findings=[{}])",
+            self.recording,
+            effects.join(", ")
+        ))
+    }
+
+    /// The report as plain dicts, lists, str, int and float (`None` for `null`).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("json")?.call_method1("loads", (&self.json,))
+    }
+
+    /// The report's JSON text, as `ctr-cli --report` writes it (indented, with a final
+    /// newline) or compact.
+    #[pyo3(signature = (indent = true))]
+    fn to_json(&self, indent: bool) -> String {
+        if indent {
+            indent_json(&self.json) + "\n"
+        } else {
+            self.json.clone()
+        }
+    }
+
+    /// The plain-language summary `ctr-cli` prints.
+    fn summary(&self) -> &str {
+        &self.summary
+    }
+
+    /// The fitted model: the robot with its `[model]` and the effects found, fitted.
+    #[getter]
+    fn fitted(&self, py: Python<'_>) -> Py<Robot> {
+        self.fitted.clone_ref(py)
+    }
+
+    /// The recording's file name.
+    #[getter]
+    fn recording(&self) -> &str {
+        &self.recording
+    }
+
+    /// The ids of the effects found, in the order added.
+    #[getter]
+    fn effects(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        let findings = self.item(py, "findings")?;
+        findings
+            .try_iter()?
+            .map(|f| f?.get_item("effect")?.extract())
+            .collect()
+    }
+
+    /// `baseline`: the user model's figures.
+    #[getter]
+    fn baseline<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "baseline")
+    }
+
+    /// `findings`: the effects found, in the order added.
+    #[getter]
+    fn findings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "findings")
+    }
+
+    /// `final`: the fitted model's figures.
+    #[getter(r#final)]
+    fn final_<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "final")
+    }
+
+    /// `unexplained`: what is left, in words.
+    #[getter]
+    fn unexplained<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "unexplained")
+    }
+
+    /// `noise`: the noise estimated from the data.
+    #[getter]
+    fn noise<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "noise")
+    }
+
+    /// `split`: the split used.
+    #[getter]
+    fn split<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "split")
+    }
+
+    /// `located`: where the user model's error sits.
+    #[getter]
+    fn located<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "located")
+    }
+
+    /// `tried`: every candidate fitted, round by round.
+    #[getter]
+    fn tried<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "tried")
+    }
+
+    /// `failed_rows`: rows whose solve did not converge under the fitted model.
+    #[getter]
+    fn failed_rows<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "failed_rows")
+    }
+}
+
+/// Indents compact JSON text by two spaces per level, as `serde_json::to_string_pretty`
+/// does, without re-printing any number.
+fn indent_json(compact: &str) -> String {
+    let mut out = String::with_capacity(compact.len() * 2);
+    let mut depth = 0usize;
+    let mut in_string = false;
+    let mut escaped = false;
+    let mut chars = compact.chars().peekable();
+    let newline = |out: &mut String, depth: usize| {
+        out.push('\n');
+        for _ in 0..depth {
+            out.push_str("  ");
+        }
+    };
+    while let Some(c) = chars.next() {
+        if in_string {
+            out.push(c);
+            if escaped {
+                escaped = false;
+            } else if c == '\\' {
+                escaped = true;
+            } else if c == '"' {
+                in_string = false;
+            }
+            continue;
+        }
+        match c {
+            '"' => {
+                in_string = true;
+                out.push(c);
+            }
+            '{' | '[' => {
+                out.push(c);
+                let close = if c == '{' { '}' } else { ']' };
+                if chars.peek() == Some(&close) {
+                    out.push(close);
+                    chars.next();
+                } else {
+                    depth += 1;
+                    newline(&mut out, depth);
+                }
+            }
+            '}' | ']' => {
+                depth = depth.saturating_sub(1);
+                newline(&mut out, depth);
+                out.push(c);
+            }
+            ',' => {
+                out.push(c);
+                newline(&mut out, depth);
+            }
+            ':' => out.push_str(": "),
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+/// Diagnoses a robot's model against a recording; see `_ctr.pyi`.
+#[pyfunction]
+#[pyo3(signature = (robot, recording, *, holdout = None, effects = None, threads = None))]
+pub fn diagnose(
+    py: Python<'_>,
+    robot: &Bound<'_, Robot>,
+    recording: &Bound<'_, PyAny>,
+    holdout: Option<&Bound<'_, PyAny>>,
+    effects: Option<&Bound<'_, PyAny>>,
+    threads: Option<i64>,
+) -> PyResult<Report> {
+    let robot = robot.get();
+    let options = Options {
+        holdout: holdout_arg(holdout)?,
+        candidates: match effects {
+            None => EffectId::ALL.to_vec(),
+            Some(e) => effects_arg("effects", e)?,
+        },
+        threads: threads_opt(threads)?,
+        clearance_table: None,
+    };
+    let rec = recording_arg(py, recording, robot)?;
+    let model = ModelSpec::from_spec(robot.spec());
+    let rec_ref: &formats::Recording = &rec;
+    let d = py
+        .detach(|| analysis::diagnose(&model, rec_ref, &options))
+        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
+    Report::new(py, &d, robot, &rec)
+}
+
+/// Fits the named effects' parameters; see `_ctr.pyi`.
+#[pyfunction]
+#[pyo3(signature = (robot, recording, fit, *, table = None, holdout = None, threads = None))]
+pub fn calibrate(
+    py: Python<'_>,
+    robot: &Bound<'_, Robot>,
+    recording: &Bound<'_, PyAny>,
+    fit: &Bound<'_, PyAny>,
+    table: Option<i64>,
+    holdout: Option<&Bound<'_, PyAny>>,
+    threads: Option<i64>,
+) -> PyResult<Report> {
+    let robot = robot.get();
+    let fit = effects_arg("fit", fit)?;
+    if fit.is_empty() {
+        return Err(errors::input(
+            "fit: no effect ids; name the effects whose parameters are fitted (e.g. \
+             [\"clearance\"])"
+                .into(),
+        ));
+    }
+    let table = match table {
+        None => None,
+        Some(k) if k >= 0 && TABLE_RANGE.contains(&(k as usize)) => Some(k as usize),
+        Some(k) => {
+            return Err(errors::input(format!(
+                "table: {k} is not in {}..={}",
+                TABLE_RANGE.start(),
+                TABLE_RANGE.end()
+            )))
+        }
+    };
+    let options = Options {
+        holdout: holdout_arg(holdout)?,
+        threads: threads_opt(threads)?,
+        clearance_table: table,
+        ..Options::default()
+    };
+    let rec = recording_arg(py, recording, robot)?;
+    let model = ModelSpec::from_spec(robot.spec());
+    let rec_ref: &formats::Recording = &rec;
+    let d = py
+        .detach(|| analysis::calibrate(&model, rec_ref, &fit, &options))
+        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
+    Report::new(py, &d, robot, &rec)
+}
+
+/// Mean and largest tip error per run for several models; see `_ctr.pyi`.
+#[pyfunction]
+pub fn evaluate<'py>(
+    py: Python<'py>,
+    robots: &Bound<'py, PyAny>,
+    recording: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyList>> {
+    let list: Vec<Bound<'py, Robot>> = if let Ok(r) = robots.cast::<Robot>() {
+        vec![r.clone()]
+    } else {
+        let not_robots = || {
+            errors::input_type(format!(
+                "robots: a {} is not a list of ctr_py.Robot",
+                type_name(robots)
+            ))
+        };
+        let mut v = Vec::new();
+        for item in robots.try_iter().map_err(|_| not_robots())? {
+            let item = item?;
+            let r = item.cast::<Robot>().map_err(|_| {
+                errors::input_type(format!(
+                    "robots: a {} is not a ctr_py.Robot",
+                    type_name(&item)
+                ))
+            })?;
+            v.push(r.clone());
+        }
+        v
+    };
+    let Some(first) = list.first() else {
+        return Err(errors::input(
+            "robots: no robots; give at least one model to evaluate".into(),
+        ));
+    };
+    let first = first.get();
+    let n_first = first.spec().robot.n_tubes();
+    for r in &list[1..] {
+        let r = r.get();
+        let n = r.spec().robot.n_tubes();
+        if n != n_first {
+            // `ctr-cli evaluate`'s message
+            return Err(errors::input(format!(
+                "{}: {n} tubes, but the first robot has {n_first}; models compared on one \
+                 recording must have the same tubes",
+                r.source_name()
+            )));
+        }
+    }
+    let rec = recording_arg(py, recording, first)?;
+    let models: Vec<ModelSpec> = list
+        .iter()
+        .map(|r| ModelSpec::from_spec(r.get().spec()))
+        .collect();
+    let rec_ref: &formats::Recording = &rec;
+    let table = py
+        .detach(|| analysis::evaluate(&models, rec_ref))
+        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
+    let out = PyList::empty(py);
+    for r in table {
+        let d = PyDict::new(py);
+        d.set_item("run", r.run)?;
+        d.set_item("rows", r.rows)?;
+        d.set_item("mean_mm", r.mean_mm)?;
+        d.set_item("max_mm", r.max_mm)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn indent_equals_serde_pretty() {
+        let v = serde_json::json!({
+            "a": [1.5, {"b": "x,\"y\":[z]", "c": []}, {}],
+            "d": {"e": null, "f": -0.1e-300, "g": [[1], [2, 3]]},
+        });
+        let compact = serde_json::to_string(&v).unwrap();
+        assert_eq!(
+            indent_json(&compact),
+            serde_json::to_string_pretty(&v).unwrap()
+        );
+    }
+
+    #[test]
+    fn holdout_and_effect_strings_as_the_cli() {
+        assert_eq!(parse_holdout("blocks:3"), Ok(Holdout::Blocks { every: 3 }));
+        assert_eq!(
+            parse_holdout("runs: a ,b"),
+            Ok(Holdout::Runs(vec!["a".into(), "b".into()]))
+        );
+        assert!(parse_holdout("blocks:1").is_err());
+        assert!(parse_holdout("runs:").is_err());
+        assert_eq!(parse_effect(" latency"), Ok(EffectId::Latency));
+        assert!(parse_effect("lag")
+            .unwrap_err()
+            .starts_with("unknown effect \"lag\""));
+    }
+}
