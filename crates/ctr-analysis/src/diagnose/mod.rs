@@ -44,6 +44,9 @@ const HUBER_SIGMAS: f64 = 4.0;
 /// What is left counts as noise when its RMS is at most this many times the noise
 /// estimate's.
 const NOISE_TOLERANCE: f64 = 1.15;
+/// A row the final model misses by more than this many noise standard deviations (per
+/// axis) is a tracker outlier (a 3-D Gaussian error exceeds 6 sigma once in 10^7).
+pub const OUTLIER_SIGMAS: f64 = 6.0;
 /// Robust standard deviation from a median absolute deviation.
 const MAD_TO_SIGMA: f64 = 1.4826;
 /// Fewest rows in a block of the split.
@@ -196,6 +199,12 @@ pub struct Report {
     pub tried: Vec<Trial>,
     /// Rows whose solve did not converge under the final model.
     pub failed_rows: usize,
+    /// File lines of the rows the final model misses by more than
+    /// [`OUTLIER_SIGMAS`] noise standard deviations: tracker outliers, kept out of the
+    /// fit by the robust loss.
+    pub outlier_lines: Vec<usize>,
+    /// The final model's figures without those rows.
+    pub final_inliers: Figures,
 }
 
 /// A diagnosis: the report and the fitted model.
@@ -409,6 +418,83 @@ fn not_applicable(effect: EffectId, model: &ModelSpec, rec: &Recording) -> Optio
             Some("not tried: one tube has no neighbour".into())
         }
         _ => None,
+    }
+}
+
+/// Rows whose error exceeds [`OUTLIER_SIGMAS`] noise standard deviations.
+fn outlier_rows(e: &[[f64; 3]], noise: &Noise) -> Vec<usize> {
+    if noise.sigma_mm_per_axis.is_nan() || noise.sigma_mm_per_axis <= 0.0 {
+        return Vec::new();
+    }
+    let limit = OUTLIER_SIGMAS * noise.sigma_mm_per_axis;
+    e.iter()
+        .enumerate()
+        .filter(|(_, v)| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() > limit)
+        .map(|(r, _)| r)
+        .collect()
+}
+
+/// Figures without the outlier rows.
+fn inlier_figures(e: &[[f64; 3]], held: &[bool], outliers: &[usize]) -> Figures {
+    let keep: Vec<usize> = (0..e.len())
+        .filter(|r| outliers.binary_search(r).is_err())
+        .collect();
+    let e: Vec<[f64; 3]> = keep.iter().map(|&r| e[r]).collect();
+    let held: Vec<bool> = keep.iter().map(|&r| held[r]).collect();
+    figures(&e, &held)
+}
+
+/// What is left, in words.
+fn leftover(
+    rec: &Recording,
+    fig: &Figures,
+    inliers: &Figures,
+    outliers: &[usize],
+    noise: &Noise,
+    where_: impl FnOnce() -> String,
+) -> String {
+    let outlier_note = if outliers.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " once {} row{} the model misses by more than {OUTLIER_SIGMAS} noise deviations \
+             (tracker outliers: lines {}) are set aside",
+            outliers.len(),
+            if outliers.len() == 1 { "" } else { "s" },
+            outliers
+                .iter()
+                .take(10)
+                .map(|&r| rec.rows[r].line.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+                + if outliers.len() > 10 { ", ..." } else { "" }
+        )
+    };
+    if inliers.rms_mm <= NOISE_TOLERANCE * noise.rms_mm {
+        format!(
+            "residual is consistent with measurement noise{outlier_note}: {:.3} mm RMS on the \
+             fit rows, {:.3} mm held out, against {:.3} mm of noise estimated from the data",
+            inliers.rms_mm, inliers.heldout_rms_mm, noise.rms_mm
+        )
+    } else {
+        format!(
+            "{:.3} mm RMS is left ({:.3} mm held out{}), above the {:.3} mm of noise \
+             estimated from the data, and no effect of the vocabulary reduces it further; it \
+             sits in {}",
+            fig.rms_mm,
+            fig.heldout_rms_mm,
+            if outliers.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; {:.3} mm without {} outlier rows",
+                    inliers.rms_mm,
+                    outliers.len()
+                )
+            },
+            noise.rms_mm,
+            where_()
+        )
     }
 }
 
@@ -694,24 +780,12 @@ pub fn diagnose(
             noise
         }
     };
-    let unexplained = if current_fig.rms_mm <= NOISE_TOLERANCE * noise.rms_mm {
-        format!(
-            "residual is consistent with measurement noise: {:.3} mm RMS on the fit rows, \
-             {:.3} mm held out, against {:.3} mm of noise estimated from the data",
-            current_fig.rms_mm, current_fig.heldout_rms_mm, noise.rms_mm
-        )
-    } else {
+    let outliers = outlier_rows(&current_e, &noise);
+    let inliers = inlier_figures(&current_e, &held, &outliers);
+    let unexplained = leftover(rec, &current_fig, &inliers, &outliers, &noise, || {
         let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-        let left = locate::locate(rec, &current_e, &fit_mask, &final_pred.p);
-        format!(
-            "{:.3} mm RMS is left ({:.3} mm held out), above the {:.3} mm of noise estimated \
-             from the data, and no effect of the vocabulary reduces it further; it sits in {}",
-            current_fig.rms_mm,
-            current_fig.heldout_rms_mm,
-            noise.rms_mm,
-            locate::summary(&left)
-        )
-    };
+        locate::summary(&locate::locate(rec, &current_e, &fit_mask, &final_pred.p))
+    });
     let fit_rows_count = fit_rows.len();
     Ok(Diagnosis {
         report: Report {
@@ -728,6 +802,8 @@ pub fn diagnose(
             located,
             tried,
             failed_rows: final_pred.failed,
+            outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
+            final_inliers: inliers,
         },
         fitted: current,
     })
@@ -1020,19 +1096,11 @@ pub fn calibrate(
             noise
         }
     };
-    let unexplained = if fig.rms_mm <= NOISE_TOLERANCE * noise.rms_mm {
-        format!(
-            "residual is consistent with measurement noise: {:.3} mm RMS on the fit rows, \
-             {:.3} mm held out, against {:.3} mm of noise estimated from the data",
-            fig.rms_mm, fig.heldout_rms_mm, noise.rms_mm
-        )
-    } else {
-        format!(
-            "{:.3} mm RMS is left ({:.3} mm held out), above the {:.3} mm of noise estimated \
-             from the data; `ctr-cli diagnose` searches the other effects",
-            fig.rms_mm, fig.heldout_rms_mm, noise.rms_mm
-        )
-    };
+    let outliers = outlier_rows(&e, &noise);
+    let inliers = inlier_figures(&e, &held, &outliers);
+    let unexplained = leftover(rec, &fig, &inliers, &outliers, &noise, || {
+        "`ctr-cli diagnose` searches the other effects".into()
+    });
     Ok(Diagnosis {
         report: Report {
             baseline,
@@ -1048,6 +1116,8 @@ pub fn calibrate(
             located,
             tried: Vec::new(),
             failed_rows: pred.failed,
+            outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
+            final_inliers: inliers,
         },
         fitted: m,
     })
