@@ -4,7 +4,7 @@
 
 use crate::plots;
 use crate::Failure;
-use ctr_analysis::diagnose::{self, Diagnosis, EffectId, Holdout, Options, Report};
+use ctr_analysis::diagnose::{self, Diagnosis, EffectId, Holdout, Options};
 use ctr_analysis::formats::{AtomicFile, Recording, RobotSpec};
 use ctr_analysis::simulate::ModelSpec;
 use std::io::Write;
@@ -30,7 +30,7 @@ pub struct DiagnoseArgs {
     pub plots: Option<PathBuf>,
     /// How rows are held out: `blocks:K` (each run in contiguous blocks, one in K held
     /// out; default blocks:4) or `runs:LABEL,LABEL` (those runs held out whole).
-    #[arg(long, value_name = "SPLIT", value_parser = parse_holdout)]
+    #[arg(long, value_name = "SPLIT", value_parser = str::parse::<Holdout>)]
     pub holdout: Option<Holdout>,
     /// Only try these effects (comma separated contract ids; default: all ten).
     #[arg(long, value_name = "IDS", value_delimiter = ',', value_parser = parse_effect)]
@@ -60,7 +60,7 @@ pub struct CalibrateArgs {
     #[arg(long = "out", value_name = "FITTED.toml")]
     pub out: Option<PathBuf>,
     /// How rows are held out (as for diagnose).
-    #[arg(long, value_name = "SPLIT", value_parser = parse_holdout)]
+    #[arg(long, value_name = "SPLIT", value_parser = str::parse::<Holdout>)]
     pub holdout: Option<Holdout>,
     /// With --fit clearance: a smooth table of N values per pair over one turn (the
     /// seed's measured "database", written as table_deg) instead of a cosine profile.
@@ -83,26 +83,7 @@ pub struct EvaluateArgs {
 }
 
 fn parse_effect(s: &str) -> Result<EffectId, String> {
-    EffectId::parse(s.trim()).ok_or_else(|| {
-        format!(
-            "unknown effect {s:?}; the contract's ids are {}",
-            EffectId::ALL.map(EffectId::as_str).join(", ")
-        )
-    })
-}
-
-fn parse_holdout(s: &str) -> Result<Holdout, String> {
-    let want = "wanted blocks:K (K >= 2) or runs:LABEL[,LABEL...]";
-    match s.split_once(':') {
-        Some(("blocks", k)) => match k.parse::<usize>() {
-            Ok(every) if every >= 2 => Ok(Holdout::Blocks { every }),
-            _ => Err(format!("{s:?}: {want}")),
-        },
-        Some(("runs", labels)) if !labels.trim().is_empty() => Ok(Holdout::Runs(
-            labels.split(',').map(|l| l.trim().to_owned()).collect(),
-        )),
-        _ => Err(format!("{s:?}: {want}")),
-    }
+    EffectId::from_id(s)
 }
 
 fn threads(t: Option<u16>) -> usize {
@@ -142,11 +123,7 @@ fn write_outputs(
         write_text(path, &(json + "\n"))?;
     }
     if let Some(path) = out {
-        let fitted = RobotSpec {
-            model: d.fitted.model,
-            effects: d.fitted.effects.clone(),
-            ..spec.clone()
-        };
+        let fitted = d.fitted_spec(spec);
         let header = format!(
             "# Fitted by ctr-cli from {}: {}\n",
             spec.name.as_deref().unwrap_or("the robot file"),
@@ -166,44 +143,6 @@ fn write_outputs(
     Ok(())
 }
 
-/// The plain-language summary printed on stdout.
-pub fn summary(report: &Report, recording: &str) -> String {
-    let mut s = format!(
-        "{recording}: the model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out \
-         rows, largest {:.3} mm).\n",
-        report.baseline.rms_mm, report.baseline.heldout_rms_mm, report.baseline.max_mm
-    );
-    let patterns: Vec<&str> = report
-        .located
-        .iter()
-        .filter(|l| l.kind != "run")
-        .take(3)
-        .map(|l| l.text.as_str())
-        .collect();
-    if !patterns.is_empty() {
-        s += &format!("Where: the error {}.\n", patterns.join("; "));
-    }
-    if report.findings.is_empty() {
-        s += "No left-out effect explains part of it.\n";
-    }
-    for f in &report.findings {
-        s += &format!(
-            "{}\n  where: {}\n  held-out RMS {:.3} -> {:.3} mm (fit rows {:.3} -> {:.3} mm)\n",
-            f.explanation,
-            f.where_,
-            f.heldout_rms_mm_before,
-            f.heldout_rms_mm_after,
-            f.rms_mm_before,
-            f.rms_mm_after
-        );
-    }
-    s += &format!(
-        "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
-        report.final_.rms_mm, report.final_.heldout_rms_mm, report.unexplained
-    );
-    s
-}
-
 /// `ctr-cli diagnose`.
 pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
     check_outputs(&[&args.report, &args.out])?;
@@ -221,7 +160,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
     if let Some(dir) = &args.plots {
         plots::write_all(dir, &rec, &model, &d).map_err(Failure::Input)?;
     }
-    print!("{}", summary(&d.report, &rec.file));
+    print!("{}", d.report.summary(&rec.file));
     Ok(())
 }
 
@@ -238,7 +177,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
     let d = diagnose::calibrate(&ModelSpec::from_spec(&spec), &rec, &args.fit, &options)
         .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
     write_outputs(&spec, &d, &args.report, &args.out)?;
-    print!("{}", summary(&d.report, &rec.file));
+    print!("{}", d.report.summary(&rec.file));
     Ok(())
 }
 

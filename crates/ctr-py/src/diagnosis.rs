@@ -12,7 +12,7 @@ use crate::errors;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::diagnose::{self as analysis, Diagnosis, EffectId, Holdout, Options};
-use ctr_analysis::formats::{self, RobotSpec};
+use ctr_analysis::formats;
 use ctr_analysis::simulate::ModelSpec;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -21,31 +21,6 @@ use std::path::PathBuf;
 
 /// `calibrate --table`'s range.
 const TABLE_RANGE: std::ops::RangeInclusive<usize> = 3..=72;
-
-/// A contract effect id, with `ctr-cli`'s message for an unknown one.
-fn parse_effect(s: &str) -> Result<EffectId, String> {
-    EffectId::parse(s.trim()).ok_or_else(|| {
-        format!(
-            "unknown effect {s:?}; the contract's ids are {}",
-            EffectId::ALL.map(EffectId::as_str).join(", ")
-        )
-    })
-}
-
-/// A split, `blocks:K` or `runs:LABEL,...`, with `ctr-cli`'s message for a bad one.
-fn parse_holdout(s: &str) -> Result<Holdout, String> {
-    let want = "wanted blocks:K (K >= 2) or runs:LABEL[,LABEL...]";
-    match s.split_once(':') {
-        Some(("blocks", k)) => match k.parse::<usize>() {
-            Ok(every) if every >= 2 => Ok(Holdout::Blocks { every }),
-            _ => Err(format!("{s:?}: {want}")),
-        },
-        Some(("runs", labels)) if !labels.trim().is_empty() => Ok(Holdout::Runs(
-            labels.split(',').map(|l| l.trim().to_owned()).collect(),
-        )),
-        _ => Err(format!("{s:?}: {want}")),
-    }
-}
 
 /// `holdout=`: `None` (the default split, blocks:4) or the CLI's string.
 fn holdout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Holdout> {
@@ -58,7 +33,9 @@ fn holdout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Holdout> {
             type_name(obj)
         ))
     })?;
-    parse_holdout(&s.to_cow()?).map_err(|m| errors::input(format!("holdout: {m}")))
+    s.to_cow()?
+        .parse::<Holdout>()
+        .map_err(|m| errors::input(format!("holdout: {m}")))
 }
 
 /// A list of effect ids: a comma-separated str or a sequence of str.
@@ -86,7 +63,7 @@ fn effects_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<EffectId>> {
         ids
     };
     ids.iter()
-        .map(|s| parse_effect(s).map_err(|m| errors::input(format!("{name}: {m}"))))
+        .map(|s| EffectId::from_id(s).map_err(|m| errors::input(format!("{name}: {m}"))))
         .collect()
 }
 
@@ -140,44 +117,6 @@ fn recording_arg<'a>(
     Ok(Cow::Owned(recording::read(py, &path, n)?))
 }
 
-/// The summary `ctr-cli diagnose` prints (the same text, line for line).
-fn summary(report: &analysis::Report, recording: &str) -> String {
-    let mut s = format!(
-        "{recording}: the model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out \
-         rows, largest {:.3} mm).\n",
-        report.baseline.rms_mm, report.baseline.heldout_rms_mm, report.baseline.max_mm
-    );
-    let patterns: Vec<&str> = report
-        .located
-        .iter()
-        .filter(|l| l.kind != "run")
-        .take(3)
-        .map(|l| l.text.as_str())
-        .collect();
-    if !patterns.is_empty() {
-        s += &format!("Where: the error {}.\n", patterns.join("; "));
-    }
-    if report.findings.is_empty() {
-        s += "No left-out effect explains part of it.\n";
-    }
-    for f in &report.findings {
-        s += &format!(
-            "{}\n  where: {}\n  held-out RMS {:.3} -> {:.3} mm (fit rows {:.3} -> {:.3} mm)\n",
-            f.explanation,
-            f.where_,
-            f.heldout_rms_mm_before,
-            f.heldout_rms_mm_after,
-            f.rms_mm_before,
-            f.rms_mm_after
-        );
-    }
-    s += &format!(
-        "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
-        report.final_.rms_mm, report.final_.heldout_rms_mm, report.unexplained
-    );
-    s
-}
-
 /// A diagnosis's or calibration's report; see `_ctr.pyi`.
 #[pyclass(frozen, module = "ctr_py", name = "Report")]
 pub struct Report {
@@ -200,15 +139,10 @@ impl Report {
     ) -> PyResult<Self> {
         let json = serde_json::to_string(&d.report)
             .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
-        let spec = robot.spec();
-        let fitted = RobotSpec {
-            model: d.fitted.model,
-            effects: d.fitted.effects.clone(),
-            ..spec.clone()
-        };
+        let fitted = d.fitted_spec(robot.spec());
         Ok(Report {
             json,
-            summary: summary(&d.report, &rec.file),
+            summary: d.report.summary(&rec.file),
             fitted: Py::new(
                 py,
                 Robot::new(fitted, format!("{} (fitted)", robot.source_name())),
@@ -605,15 +539,15 @@ mod tests {
 
     #[test]
     fn holdout_and_effect_strings_as_the_cli() {
-        assert_eq!(parse_holdout("blocks:3"), Ok(Holdout::Blocks { every: 3 }));
+        assert_eq!("blocks:3".parse(), Ok(Holdout::Blocks { every: 3 }));
         assert_eq!(
-            parse_holdout("runs: a ,b"),
+            "runs: a ,b".parse(),
             Ok(Holdout::Runs(vec!["a".into(), "b".into()]))
         );
-        assert!(parse_holdout("blocks:1").is_err());
-        assert!(parse_holdout("runs:").is_err());
-        assert_eq!(parse_effect(" latency"), Ok(EffectId::Latency));
-        assert!(parse_effect("lag")
+        assert!("blocks:1".parse::<Holdout>().is_err());
+        assert!("runs:".parse::<Holdout>().is_err());
+        assert_eq!(EffectId::from_id(" latency"), Ok(EffectId::Latency));
+        assert!(EffectId::from_id("lag")
             .unwrap_err()
             .starts_with("unknown effect \"lag\""));
     }

@@ -95,6 +95,23 @@ impl EffectId {
         EffectId::ALL.into_iter().find(|e| e.as_str() == s)
     }
 
+    /// Parses a contract id (surrounding blanks ignored), with a message listing the
+    /// ids for an unknown one: what `ctr-cli` and `ctr_py` say.
+    ///
+    /// ```
+    /// use ctr_analysis::diagnose::EffectId;
+    /// assert_eq!(EffectId::from_id(" latency"), Ok(EffectId::Latency));
+    /// assert!(EffectId::from_id("lag").unwrap_err().starts_with("unknown effect \"lag\""));
+    /// ```
+    pub fn from_id(s: &str) -> Result<Self, String> {
+        EffectId::parse(s.trim()).ok_or_else(|| {
+            format!(
+                "unknown effect {s:?}; the contract's ids are {}",
+                EffectId::ALL.map(EffectId::as_str).join(", ")
+            )
+        })
+    }
+
     /// True when the model already has the effect.
     pub fn present_in(self, m: &ModelSpec) -> bool {
         let e = &m.effects;

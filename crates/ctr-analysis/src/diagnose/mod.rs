@@ -30,7 +30,7 @@ pub mod locate;
 pub use candidates::EffectId;
 pub use locate::Statement;
 
-use crate::formats::Recording;
+use crate::formats::{Recording, RobotSpec};
 use crate::simulate::{predict, ModelSpec};
 use fit::Problem;
 use serde::Serialize;
@@ -70,6 +70,32 @@ pub enum Holdout {
     },
     /// These runs (labels) are held out whole.
     Runs(Vec<String>),
+}
+
+impl std::str::FromStr for Holdout {
+    type Err = String;
+
+    /// `blocks:K` (K >= 2) or `runs:LABEL[,LABEL...]`, as `--holdout` takes it.
+    ///
+    /// ```
+    /// use ctr_analysis::diagnose::Holdout;
+    /// assert_eq!("blocks:3".parse(), Ok(Holdout::Blocks { every: 3 }));
+    /// assert_eq!("runs: a ,b".parse(), Ok(Holdout::Runs(vec!["a".into(), "b".into()])));
+    /// assert!("blocks:1".parse::<Holdout>().is_err());
+    /// ```
+    fn from_str(s: &str) -> Result<Self, String> {
+        let want = "wanted blocks:K (K >= 2) or runs:LABEL[,LABEL...]";
+        match s.split_once(':') {
+            Some(("blocks", k)) => match k.parse::<usize>() {
+                Ok(every) if every >= 2 => Ok(Holdout::Blocks { every }),
+                _ => Err(format!("{s:?}: {want}")),
+            },
+            Some(("runs", labels)) if !labels.trim().is_empty() => Ok(Holdout::Runs(
+                labels.split(',').map(|l| l.trim().to_owned()).collect(),
+            )),
+            _ => Err(format!("{s:?}: {want}")),
+        }
+    }
 }
 
 impl Default for Holdout {
@@ -214,6 +240,58 @@ pub struct Diagnosis {
     pub report: Report,
     /// The user's model with the effects found, fitted.
     pub fitted: ModelSpec,
+}
+
+impl Report {
+    /// The plain-language summary (`ctr-cli diagnose` prints it; `ctr_py` returns it):
+    /// the error, where it sits, each finding with its gain, and what is left.
+    pub fn summary(&self, recording: &str) -> String {
+        let mut s = format!(
+            "{recording}: the model misses the measured tip by {:.3} mm RMS ({:.3} mm on \
+             held-out rows, largest {:.3} mm).\n",
+            self.baseline.rms_mm, self.baseline.heldout_rms_mm, self.baseline.max_mm
+        );
+        let patterns: Vec<&str> = self
+            .located
+            .iter()
+            .filter(|l| l.kind != "run")
+            .take(3)
+            .map(|l| l.text.as_str())
+            .collect();
+        if !patterns.is_empty() {
+            s += &format!("Where: the error {}.\n", patterns.join("; "));
+        }
+        if self.findings.is_empty() {
+            s += "No left-out effect explains part of it.\n";
+        }
+        for f in &self.findings {
+            s += &format!(
+                "{}\n  where: {}\n  held-out RMS {:.3} -> {:.3} mm (fit rows {:.3} -> {:.3} mm)\n",
+                f.explanation,
+                f.where_,
+                f.heldout_rms_mm_before,
+                f.heldout_rms_mm_after,
+                f.rms_mm_before,
+                f.rms_mm_after
+            );
+        }
+        s += &format!(
+            "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
+            self.final_.rms_mm, self.final_.heldout_rms_mm, self.unexplained
+        );
+        s
+    }
+}
+
+impl Diagnosis {
+    /// The fitted model as a robot file: `spec` (the user's) with the fitted `[model]`.
+    pub fn fitted_spec(&self, spec: &RobotSpec) -> RobotSpec {
+        RobotSpec {
+            model: self.fitted.model,
+            effects: self.fitted.effects.clone(),
+            ..spec.clone()
+        }
+    }
 }
 
 /// Why a diagnosis could not run.
@@ -527,6 +605,102 @@ fn run_pool<J: Sync, R: Send>(threads: usize, jobs: &[J], f: impl Fn(&J) -> R + 
     out.into_iter().map(|r| r.expect("every job ran")).collect()
 }
 
+/// What a diagnosis and a calibration both start from: the split and the user model's
+/// error on it.
+struct Start {
+    held: Vec<bool>,
+    split_method: String,
+    all_runs: Vec<usize>,
+    fit_rows: Vec<usize>,
+    /// The user model's error vectors, every row.
+    e0: Vec<[f64; 3]>,
+    baseline: Figures,
+    noise: Noise,
+    located: Vec<Statement>,
+}
+
+impl Start {
+    fn new(model: &ModelSpec, rec: &Recording, holdout: &Holdout) -> Result<Self, DiagnoseError> {
+        let (held, split_method) = split(rec, holdout)?;
+        let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+        let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+        let base = predict(model, rec, &all_runs)
+            .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
+        let e0 = errors(rec, &base.p);
+        let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
+        Ok(Start {
+            baseline: figures(&e0, &held),
+            noise: estimate_noise(rec, &e0),
+            located: locate::locate(rec, &e0, &fit_mask, &base.p),
+            held,
+            split_method,
+            all_runs,
+            fit_rows,
+            e0,
+        })
+    }
+
+    /// Huber threshold of the fits, mm (none without a noise estimate).
+    fn huber_mm(&self) -> f64 {
+        let sigma = self.noise.sigma_mm_per_axis;
+        if sigma.is_finite() && sigma > 0.0 {
+            HUBER_SIGMAS * sigma
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// The report of the model `fitted`, whose error vectors are `e`: the noise estimated
+    /// again on what it leaves (closer to white), tracker outliers set aside, and what is
+    /// left in words (`where_left` says where, given the fit rows' mask).
+    fn finish(
+        self,
+        rec: &Recording,
+        fitted: ModelSpec,
+        findings: Vec<Finding>,
+        final_: Figures,
+        e: &[[f64; 3]],
+        tried: Vec<Trial>,
+        failed_rows: usize,
+        where_left: impl FnOnce(&[bool]) -> String,
+    ) -> Diagnosis {
+        let again = estimate_noise(rec, e);
+        let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis
+            || !self.noise.sigma_mm_per_axis.is_finite()
+        {
+            again
+        } else {
+            self.noise
+        };
+        let outliers = outlier_rows(e, &noise);
+        let inliers = inlier_figures(e, &self.held, &outliers);
+        let fit_mask: Vec<bool> = self.held.iter().map(|h| !h).collect();
+        let unexplained = leftover(rec, &final_, &inliers, &outliers, &noise, || {
+            where_left(&fit_mask)
+        });
+        Diagnosis {
+            report: Report {
+                baseline: self.baseline,
+                findings,
+                final_,
+                unexplained,
+                noise,
+                split: Split {
+                    method: self.split_method,
+                    fit_rows: self.fit_rows.len(),
+                    heldout_rows: rec.rows.len() - self.fit_rows.len(),
+                },
+                located: self.located,
+                tried,
+                failed_rows,
+                outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
+                final_inliers: inliers,
+            },
+            fitted,
+        }
+    }
+}
+
 /// The best candidate of a round so far.
 struct Best {
     effect: EffectId,
@@ -554,22 +728,11 @@ pub fn diagnose(
     rec: &Recording,
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let (held, split_method) = split(rec, &opt.holdout)?;
-    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
-    let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+    let start = Start::new(model, rec, &opt.holdout)?;
+    let (held, all_runs, fit_rows) = (&start.held, &start.all_runs, &start.fit_rows);
+    let (e0, baseline) = (&start.e0, start.baseline);
     let n = model.robot.n_tubes();
-    let base = predict(model, rec, &all_runs)
-        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-    let e0 = errors(rec, &base.p);
-    let baseline = figures(&e0, &held);
-    let noise = estimate_noise(rec, &e0);
-    let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-    let located = locate::locate(rec, &e0, &fit_mask, &base.p);
-    let huber = if noise.sigma_mm_per_axis.is_finite() && noise.sigma_mm_per_axis > 0.0 {
-        HUBER_SIGMAS * noise.sigma_mm_per_axis
-    } else {
-        f64::INFINITY
-    };
+    let huber = start.huber_mm();
     let threads = threads(opt.threads);
     let period = sample_period(rec);
     let n_obs = (3 * fit_rows.len()) as f64;
@@ -654,11 +817,11 @@ pub fn diagnose(
                 continue;
             };
             let m = p.model(&fitted.x);
-            let Ok(pred) = predict(&m, rec, &all_runs) else {
+            let Ok(pred) = predict(&m, rec, all_runs) else {
                 continue;
             };
             let e = errors(rec, &pred.p);
-            let fig = figures(&e, &held);
+            let fig = figures(&e, held);
             let k = c.n_params(n) as f64;
             let bic = n_obs * (fitted.cost / current_cost).ln() + k * n_obs.ln();
             round_trials.push(Trial {
@@ -723,10 +886,10 @@ pub fn diagnose(
         let (m, fig, cost, e) = match p.fit(&x0, MAX_FIT_ITERATIONS) {
             Some(f) if f.cost < cost => {
                 let mj = p.model(&f.x);
-                match predict(&mj, rec, &all_runs) {
+                match predict(&mj, rec, all_runs) {
                     Ok(pred) => {
                         let ej = errors(rec, &pred.p);
-                        (mj, figures(&ej, &held), f.cost, ej)
+                        (mj, figures(&ej, held), f.cost, ej)
                     }
                     Err(_) => (m, fig, cost, e),
                 }
@@ -768,45 +931,18 @@ pub fn diagnose(
         current_e = e;
         let _ = round;
     }
-    let final_pred = predict(&current, rec, &all_runs)
+    let final_pred = predict(&current, rec, all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-    // what the explained model leaves is closer to white: estimate the noise again there
-    let noise = {
-        let again = estimate_noise(rec, &current_e);
-        if again.sigma_mm_per_axis < noise.sigma_mm_per_axis || !noise.sigma_mm_per_axis.is_finite()
-        {
-            again
-        } else {
-            noise
-        }
-    };
-    let outliers = outlier_rows(&current_e, &noise);
-    let inliers = inlier_figures(&current_e, &held, &outliers);
-    let unexplained = leftover(rec, &current_fig, &inliers, &outliers, &noise, || {
-        let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-        locate::summary(&locate::locate(rec, &current_e, &fit_mask, &final_pred.p))
-    });
-    let fit_rows_count = fit_rows.len();
-    Ok(Diagnosis {
-        report: Report {
-            baseline,
-            findings,
-            final_: current_fig,
-            unexplained,
-            noise,
-            split: Split {
-                method: split_method,
-                fit_rows: fit_rows_count,
-                heldout_rows: rec.rows.len() - fit_rows_count,
-            },
-            located,
-            tried,
-            failed_rows: final_pred.failed,
-            outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
-            final_inliers: inliers,
-        },
-        fitted: current,
-    })
+    Ok(start.finish(
+        rec,
+        current,
+        findings,
+        current_fig,
+        &current_e,
+        tried,
+        final_pred.failed,
+        |fit_mask| locate::summary(&locate::locate(rec, &current_e, fit_mask, &final_pred.p)),
+    ))
 }
 
 /// The effect's table of the robot file, as JSON.
@@ -993,17 +1129,8 @@ pub fn calibrate(
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
-    let (held, split_method) = split(rec, &opt.holdout)?;
-    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
-    let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+    let start = Start::new(model, rec, &opt.holdout)?;
     let n = model.robot.n_tubes();
-    let base = predict(model, rec, &all_runs)
-        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-    let e0 = errors(rec, &base.p);
-    let baseline = figures(&e0, &held);
-    let noise = estimate_noise(rec, &e0);
-    let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-    let located = locate::locate(rec, &e0, &fit_mask, &base.p);
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {
         if !blocks.contains(&c) {
@@ -1014,13 +1141,9 @@ pub fn calibrate(
         base: model.clone(),
         blocks: blocks.clone(),
         rec,
-        runs: all_runs.clone(),
-        rows: fit_rows.clone(),
-        huber_mm: if noise.sigma_mm_per_axis > 0.0 {
-            HUBER_SIGMAS * noise.sigma_mm_per_axis
-        } else {
-            f64::INFINITY
-        },
+        runs: start.all_runs.clone(),
+        rows: start.fit_rows.clone(),
+        huber_mm: start.huber_mm(),
         threads: threads(opt.threads),
         clearance_table: opt.clearance_table,
     };
@@ -1064,13 +1187,13 @@ pub fn calibrate(
             DiagnoseError::Model("the model cannot be simulated with these effects".into())
         })?;
     let m = problem.model(&fitted.x);
-    let pred = predict(&m, rec, &all_runs)
+    let pred = predict(&m, rec, &start.all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     let e = errors(rec, &pred.p);
-    let fig = figures(&e, &held);
+    let fig = figures(&e, &start.held);
     let change: Vec<[f64; 3]> = e
         .iter()
-        .zip(&e0)
+        .zip(&start.e0)
         .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
         .collect();
     let all_mask = vec![true; rec.rows.len()];
@@ -1082,45 +1205,17 @@ pub fn calibrate(
             explanation: explain(c, &m),
             where_: where_.clone(),
             parameters: parameters(c, &m),
-            rms_mm_before: baseline.rms_mm,
+            rms_mm_before: start.baseline.rms_mm,
             rms_mm_after: fig.rms_mm,
-            heldout_rms_mm_before: baseline.heldout_rms_mm,
+            heldout_rms_mm_before: start.baseline.heldout_rms_mm,
             heldout_rms_mm_after: fig.heldout_rms_mm,
         })
         .collect();
-    let noise = {
-        let again = estimate_noise(rec, &e);
-        if again.sigma_mm_per_axis < noise.sigma_mm_per_axis {
-            again
-        } else {
-            noise
-        }
-    };
-    let outliers = outlier_rows(&e, &noise);
-    let inliers = inlier_figures(&e, &held, &outliers);
-    let unexplained = leftover(rec, &fig, &inliers, &outliers, &noise, || {
-        "`ctr-cli diagnose` searches the other effects".into()
-    });
-    Ok(Diagnosis {
-        report: Report {
-            baseline,
-            findings,
-            final_: fig,
-            unexplained,
-            noise,
-            split: Split {
-                method: split_method,
-                fit_rows: fit_rows.len(),
-                heldout_rows: rec.rows.len() - fit_rows.len(),
-            },
-            located,
-            tried: Vec::new(),
-            failed_rows: pred.failed,
-            outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
-            final_inliers: inliers,
-        },
-        fitted: m,
-    })
+    Ok(
+        start.finish(rec, m, findings, fig, &e, Vec::new(), pred.failed, |_| {
+            "`ctr-cli diagnose` searches the other effects".into()
+        }),
+    )
 }
 
 /// Tip errors of one run under several models (the seed paper's Table 2).
