@@ -8,21 +8,22 @@
 //! Run: `taskset -c 1 cargo bench --bench fk` (one core; criterion reports the median).
 //!
 //! Measured 2026-11-21, 2-core AMD EPYC VM (shared, noisy), default solver settings
-//! (tip within 1.1e-4 mm of the reference tables), medians:
+//! (tip within 1.1e-4 mm of the reference tables), medians, all from one run:
 //!
 //! | bench                     | nitinol2 | nitinol3 |
 //! |---------------------------|----------|----------|
-//! | torsion/warm (trajectory) | 0.47 us  | 0.91 us  |
-//! | torsion/cold (scattered)  | 0.75 us  | 1.70 us  |
-//! | rigid                     | 0.23 us  | 0.37 us  |
-//! | gravity/warm (trajectory) | 4.7 us   | 5.3 us   |
+//! | torsion/warm (trajectory) | 0.47 us  | 0.95 us  |
+//! | torsion/cold (scattered)  | 0.77 us  | 1.80 us  |
+//! | rigid                     | 0.22 us  | 0.36 us  |
+//! | gravity/warm (trajectory) | 3.4 us   | 4.9 us   |
+//! | torsion+jacobian/warm     | 1.41 us  | 3.45 us  |
 //!
-//! Targets for 3 tubes: warm <= 1 us, cold <= 2 us, gravity <= 10 us.
+//! Targets for 3 tubes: warm <= 1 us, cold <= 2 us, gravity <= 10 us, FK + joint
+//! Jacobian <= 4 us.
 //!
-//! `torsion+jacobian/warm`: the warm solve plus the 6 x 2N joint Jacobian (one
-//! dual-number pass, `ctr_core::jacobian`). Measured 2026-11 on the same VM while other
-//! builds ran (`taskset -c 1`, nitinol3): 4.2 us median, with torsion/warm 1.06 us in
-//! the same run (target <= 4 us; not yet met on this machine).
+//! `torsion+jacobian/warm`: the warm solve plus the 6 x 2N joint Jacobian (one pass with
+//! the twist in dual numbers and the frame's derivatives as spatial twists,
+//! `ctr_core::jacobian`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ctr_core::{Joints, Model, Robot, Solver};

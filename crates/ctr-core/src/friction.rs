@@ -23,12 +23,13 @@
 //! the first command of a run ([`PlayFriction::reset`]).
 
 use crate::dual::{Dual, Num};
-use crate::jacobian::{integrate, Inputs};
+use crate::jacobian::{integrate, GFrame, Inputs};
 use crate::joints::{JointError, Joints};
 use crate::real::Real;
 use crate::robot::Robot;
 use crate::sections::Sections;
 use crate::solver::{solve_linear, Model, Solution, Solver, Status};
+use crate::tangent::NoPose;
 use crate::Frame;
 use nalgebra::{Matrix3, Vector3};
 
@@ -365,6 +366,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 &inp,
                 Model::Torsion,
                 Some(&coefficient),
+                NoPose,
             );
             let mut r = [T::zero(); N];
             let mut jac = [[T::zero(); N]; N];
@@ -401,6 +403,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             &inp,
             Model::Torsion,
             Some(&coefficient),
+            GFrame::identity(T::zero(), T::one()),
         );
         let mut residual = T::zero();
         for i in 0..m {

@@ -10,7 +10,11 @@
 //! ([`crate::dual`]) with `x` and `p` as derivative directions: the integrator is the
 //! solver's own discrete map (same sections, RK4 steps, closed-form single-curve
 //! sections, Magnus pose steps, SE(3) exponentials), so its derivatives are exact
-//! derivatives of what [`Solver::solve`] computes. By the implicit function theorem
+//! derivatives of what [`Solver::solve`] computes. The twist state is carried as dual
+//! numbers; the frame is carried plain, with one spatial twist per direction updated by
+//! the exponential's left Jacobian at each step (`src/tangent.rs` derives it): the same
+//! derivative as differentiating the 3 x 3 products entry by entry, at a fraction of the
+//! cost. By the implicit function theorem
 //!
 //! ```text
 //! dx/dp = -R_x^{-1} R_p,        dP/dp = P_p + P_x dx/dp
@@ -46,6 +50,7 @@ use crate::robot::Robot;
 use crate::se3::SERIES_LIMIT_SQ;
 use crate::sections::{Section, Sections};
 use crate::solver::{solve_linear, Model, Solution, Solver};
+use crate::tangent::{Pose, Tangents};
 use core::ops::{Add, Mul, Neg, Sub};
 use nalgebra::Vector6;
 
@@ -173,8 +178,26 @@ pub(crate) struct GFrame<S> {
     pub p: V3<S>,
 }
 
+impl<T: Real, S: Num<T>> Pose<T, S> for GFrame<S> {
+    #[inline(always)]
+    fn step(&mut self, w: V3<S>, v: V3<S>) {
+        let (r, p) = exp_g(w, v);
+        self.compose(&r, &p);
+    }
+    #[inline(always)]
+    fn rotate_z(&mut self, co: S, si: S) {
+        GFrame::rotate_z(self, co, si);
+    }
+    #[inline(always)]
+    fn advance(&mut self, h: S) {
+        for i in 0..3 {
+            self.p[i] += self.r[i][2] * h;
+        }
+    }
+}
+
 impl<S: Ring> GFrame<S> {
-    fn identity(zero: S, one: S) -> Self {
+    pub fn identity(zero: S, one: S) -> Self {
         GFrame {
             r: [[one, zero, zero], [zero, one, zero], [zero, zero, one]],
             p: [zero; 3],
@@ -205,7 +228,7 @@ impl<S: Ring> GFrame<S> {
 /// `lead (1 - t2/d0 (1 - t2/d1 (...)))`: the Taylor series of [`crate::se3`], with its
 /// derivative with respect to `t2` (evaluated once on plain numbers, then chained).
 #[inline(always)]
-fn series<T: Real, S: Num<T>>(t2: S, lead: f64, divisors: &[f64; 5]) -> S {
+pub(crate) fn series<T: Real, S: Num<T>>(t2: S, lead: f64, divisors: &[f64; 5]) -> S {
     let x = Dual::<T, 1>::var(t2.re(), 0);
     let one = Dual::<T, 1>::cst(T::one());
     let mut acc = one;
@@ -411,8 +434,18 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
         un * self.inv_gj_n
     }
 
-    #[inline(always)]
+    /// The twist equations' right-hand side, kept out of line: the dual arithmetic of
+    /// four inlined stages would not fit the instruction cache (measured 4 % faster).
+    #[inline(never)]
     fn rhs<T: Real>(&self, st: &GState<S, N>) -> GState<S, N>
+    where
+        S: Num<T> + Mul<C, Output = S>,
+    {
+        self.rhs_inline(st)
+    }
+
+    #[inline(always)]
+    fn rhs_inline<T: Real>(&self, st: &GState<S, N>) -> GState<S, N>
     where
         S: Num<T> + Mul<C, Output = S>,
     {
@@ -436,8 +469,13 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
                 let pull_j = self.curved_g[j] && self.curved_a[l];
                 let pull_l = l < N - 1 && self.curved_g[l] && self.curved_a[j];
                 if pull_j || pull_l {
-                    let [cl, sl] = st.z[l];
-                    let sd = sj * cl - cj * sl;
+                    // the innermost tube is the reference: z_{N-1} = (1, 0) always
+                    let sd = if l == N - 1 {
+                        sj
+                    } else {
+                        let [cl, sl] = st.z[l];
+                        sj * cl - cj * sl
+                    };
                     if pull_j {
                         acc[j] += sd * self.a[l];
                     }
@@ -453,26 +491,31 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
         d
     }
 
-    /// Tube n's body angular rate from the relative angles `z` and its twist `un`.
+    /// Tube n's body angular rate from the relative angles `z` and its twist `un`; with
+    /// `rate`, `z` and `un` are rates (d/ds) and so is the result.
     #[inline(always)]
-    fn body_rate<T: Real>(&self, z: &[[S; 2]; N], un: S) -> V3<S>
+    fn body_rate<T: Real>(&self, z: &[[S; 2]; N], un: S, rate: bool) -> V3<S>
     where
         S: Num<T> + Mul<C, Output = S>,
     {
         let mut ux = S::cst(T::zero());
         let mut uy = S::cst(T::zero());
-        for l in 0..N {
+        for l in 0..N - 1 {
             if self.curved_a[l] {
                 ux -= z[l][1] * self.a[l];
                 uy += z[l][0] * self.a[l];
             }
+        }
+        // z_{N-1} = (1, 0) (the innermost tube is the reference); its rate is zero
+        if self.curved_a[N - 1] && !rate {
+            uy += S::cst(T::one()) * self.a[N - 1];
         }
         [ux, uy, un]
     }
 
     /// Integrates the twist across the section and moves the frame (sink-less
     /// [`crate::twist::section`] with the pose).
-    pub fn integrate<T: Real>(&self, st: &mut GState<S, N>, frame: &mut GFrame<S>)
+    pub fn integrate<T: Real, F: Pose<T, S>>(&self, st: &mut GState<S, N>, frame: &mut F)
     where
         S: Num<T> + Mul<C, Output = S>,
     {
@@ -499,8 +542,8 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
         let h2_12 = h * h * c::<T>(1.0 / 12.0);
         let mut k1 = self.rhs(st);
         // body rate and its derivative at the step's start (the last step's end)
-        let mut a0 = self.body_rate(&st.z, self.inner_twist(&st.w));
-        let mut d0 = self.body_rate(&k1.z, self.inner_twist(&k1.w));
+        let mut a0 = self.body_rate(&st.z, self.inner_twist(&st.w), false);
+        let mut d0 = self.body_rate(&k1.z, self.inner_twist(&k1.w), true);
         for _ in 0..n {
             let k2 = self.rhs(&st.axpy(&k1, half));
             let k3 = self.rhs(&st.axpy(&k2, half));
@@ -514,8 +557,8 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
                 next.w[j] += sixth * (k1.w[j] + (k2.w[j] + k3.w[j]) * c::<T>(2.0) + k4.w[j]);
             }
             let k1_next = self.rhs(&next);
-            let a1 = self.body_rate(&next.z, self.inner_twist(&next.w));
-            let d1 = self.body_rate(&k1_next.z, self.inner_twist(&k1_next.w));
+            let a1 = self.body_rate(&next.z, self.inner_twist(&next.w), false);
+            let d1 = self.body_rate(&k1_next.z, self.inner_twist(&k1_next.w), true);
             let a01 = cross(&a0, &a1);
             let mut omega = [zero; 3];
             for i in 0..3 {
@@ -523,8 +566,7 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
             }
             // v = e3 h + (a0 - a1) x e3 h^2/12
             let v = [(a0[1] - a1[1]) * h2_12, (a1[0] - a0[0]) * h2_12, h];
-            let (r, p) = exp_g(omega, v);
-            frame.compose(&r, &p);
+            frame.step(omega, v);
             *st = next;
             k1 = k1_next;
             a0 = a1;
@@ -538,16 +580,19 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
     }
 
     #[inline(always)]
-    fn pose_constant_twist<T: Real>(&self, st: &GState<S, N>, un: S, h: S, frame: &mut GFrame<S>)
-    where
+    fn pose_constant_twist<T: Real, F: Pose<T, S>>(
+        &self,
+        st: &GState<S, N>,
+        un: S,
+        h: S,
+        frame: &mut F,
+    ) where
         S: Num<T> + Mul<C, Output = S>,
     {
         let zero = S::cst(T::zero());
         let one = S::cst(T::one());
         if self.curved == 0 {
-            for i in 0..3 {
-                frame.p[i] += frame.r[i][2] * h;
-            }
+            frame.advance(h);
             let (s, co) = (un * h).sin_cos();
             frame.rotate_z(co, s);
             return;
@@ -558,8 +603,7 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
         let inv = one / (cl * cl + sl * sl).sqrt();
         let (cl, sl) = (cl * inv, sl * inv);
         frame.rotate_z(cl, sl);
-        let (r, p) = exp_g([zero, h * self.a[l], ul * h], [zero, zero, h]);
-        frame.compose(&r, &p);
+        frame.step([zero, h * self.a[l], ul * h], [zero, zero, h]);
         let (s, co) = ((ul - un) * h).sin_cos();
         let (c2, s2) = (cl * co - sl * s, sl * co + cl * s);
         frame.rotate_z(c2, -s2);
@@ -567,25 +611,30 @@ impl<S: Copy, C: Copy, const N: usize> GSection<S, C, N> {
 }
 
 /// The result of one generic integration: free-tip twists and the tip frame.
-pub(crate) struct Pass<S, const N: usize> {
+pub(crate) struct Pass<S, F, const N: usize> {
     /// `u_j(s_j)`, `j < N-1` (zero for `rigid`)
     pub r: [S; N],
-    pub frame: GFrame<S>,
+    /// the tip frame, moved from `frame` (the world frame) by [`integrate`]
+    pub frame: F,
 }
 
 /// The solver's unloaded integration (torsion: the pose pass at unknowns `inp.x`;
-/// rigid: constant curvature per section) on generic numbers.
-pub(crate) fn integrate<T: Real, S, C, const N: usize>(
+/// rigid: constant curvature per section) on generic numbers, moving `frame` (the
+/// world frame on entry) along: a plain [`GFrame`], one with derivatives
+/// ([`Tangents`]), or none ([`NoPose`](crate::tangent::NoPose)).
+pub(crate) fn integrate<T: Real, S, C, F, const N: usize>(
     robot: &Robot<T, N>,
     q: &Joints<T, N>,
     sections: &Sections<T, N>,
     inp: &Inputs<S, C, N>,
     model: Model,
     friction: Option<&[T; N]>,
-) -> Pass<S, N>
+    mut frame: F,
+) -> Pass<S, F, N>
 where
     S: Num<T> + Mul<C, Output = S>,
     C: Num<T>,
+    F: Pose<T, S>,
 {
     let zero = S::cst(T::zero());
     let one = S::cst(T::one());
@@ -594,7 +643,6 @@ where
         w: [zero; N],
     };
     st.z[N - 1] = [one, zero];
-    let mut frame = GFrame::identity(zero, one);
     let mut r = [zero; N];
     if model == Model::Rigid {
         let tn = inp.theta[N - 1];
@@ -606,12 +654,11 @@ where
         frame.rotate_z(co, s);
         for sec in sections.list.iter().take(sections.len) {
             let g = GSection::new(robot, q, inp, sec);
-            let mut rate = g.body_rate(&st.z, zero);
+            let mut rate = g.body_rate(&st.z, zero, false);
             for v in rate.iter_mut() {
                 *v = *v * g.len;
             }
-            let (rr, p) = exp_g(rate, [zero, zero, g.len]);
-            frame.compose(&rr, &p);
+            frame.step(rate, [zero, zero, g.len]);
         }
         return Pass { r, frame };
     }
@@ -683,7 +730,7 @@ fn boundary_moments<T: Real, S, C, const N: usize>(
             continue;
         }
         // tube j's moment E I_j (u - k_j e_j), e_j its precurvature direction
-        let [ux, uy, _] = g.body_rate(&st.z, S::cst(T::zero()));
+        let [ux, uy, _] = g.body_rate(&st.z, S::cst(T::zero()), false);
         let (mut mx, mut my) = (ux, uy);
         if g.curved_a[j] {
             let [cj, sj] = st.z[j];
@@ -722,13 +769,13 @@ fn seeded<T: Real, const K: usize>(v: T, i: usize, d: T) -> Dual<T, K> {
     x
 }
 
-/// Total derivatives of a tip frame, given as duals over `(x, p)`, with respect to `p`
-/// (`cols` of them after the `m` unknowns), by the implicit function theorem:
-/// `dP/dp = P_p - P_x R_x^{-1} R_p`. NaN where `R_x` is singular.
+/// Total derivatives of a tip pose with respect to `p` (`cols` of them after the `m`
+/// unknowns), by the implicit function theorem: `dP/dp = P_p - P_x R_x^{-1} R_p`.
+/// `r` are the residuals as duals over `(x, p)`, `tangent[k]` the pose's partial
+/// derivative `(dp, omega)` in direction `k`. NaN where `R_x` is singular.
 pub(crate) fn implicit_columns<T: Real, const N: usize, const K: usize>(
     r: &[Dual<T, K>; N],
-    position: &[Dual<T, K>; 3],
-    rotation: &[[Dual<T, K>; 3]; 3],
+    tangent: &[Vector6<T>; K],
     m: usize,
     cols: usize,
 ) -> [Vector6<T>; MAX_COLUMNS] {
@@ -751,48 +798,21 @@ pub(crate) fn implicit_columns<T: Real, const N: usize, const K: usize>(
             inv[i][k] = col[i];
         }
     }
-    for p in 0..cols.min(MAX_COLUMNS) {
+    for (p, slot) in out.iter_mut().enumerate().take(cols) {
         let col = m + p;
         if col >= K {
             break;
         }
         // dx/dp = -R_x^{-1} R_p
-        let mut dx = [T::zero(); N];
+        let mut v = tangent[col];
         for i in 0..m {
+            let mut dx = T::zero();
             for k in 0..m {
-                dx[i] -= inv[i][k] * r[k].eps[col];
+                dx -= inv[i][k] * r[k].eps[col];
             }
+            v += tangent[i] * dx;
         }
-        let total = |d: &Dual<T, K>| {
-            let mut v = d.eps[col];
-            for k in 0..m {
-                v += d.eps[k] * dx[k];
-            }
-            v
-        };
-        let mut v = Vector6::zeros();
-        for i in 0..3 {
-            v[i] = total(&position[i]);
-        }
-        // [omega]x = dR R^T (spatial angular velocity), from its antisymmetric part
-        let mut dr = [[T::zero(); 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                dr[i][j] = total(&rotation[i][j]);
-            }
-        }
-        let w = |i: usize, j: usize| {
-            let mut acc = T::zero();
-            for k in 0..3 {
-                acc += dr[i][k] * rotation[j][k].re;
-            }
-            acc
-        };
-        let half = c::<T>(0.5);
-        v[3] = (w(2, 1) - w(1, 2)) * half;
-        v[4] = (w(0, 2) - w(2, 0)) * half;
-        v[5] = (w(1, 0) - w(0, 1)) * half;
-        out[p] = v;
+        *slot = v;
     }
     out
 }
@@ -832,13 +852,13 @@ fn pass<T: Real, const N: usize, const K: usize>(
             for i in 0..N - 1 {
                 inp.theta[i] = seeded(plain.theta[i], m + N + i, T::one());
             }
-            let pass = integrate(robot, q, sections, &inp, model, None);
-            let mut cols =
-                implicit_columns::<T, N, K>(&pass.r, &pass.frame.p, &pass.frame.r, m, 2 * N - 1);
+            let pass = integrate(robot, q, sections, &inp, model, None, Tangents::identity());
+            let tangent = pass.frame.columns();
+            let mut cols = implicit_columns::<T, N, K>(&pass.r, &tangent, m, 2 * N - 1);
             // Turning every tube by the same angle turns the whole robot about W's z
             // axis (the model is exactly invariant), so the rotation columns sum to
             // (e_z x p, e_z): the last one follows from the others.
-            let p = pass.frame.p.map(|v| v.re);
+            let p = pass.frame.p;
             let mut last = Vector6::new(-p[1], p[0], T::zero(), T::zero(), T::zero(), T::one());
             for i in 0..N - 1 {
                 last -= cols[N + i];
@@ -862,10 +882,10 @@ fn pass<T: Real, const N: usize, const K: usize>(
                 inp.gj[i] = seeded(plain.gj[i], m + N + i, plain.gj[i]);
                 inp.k[i] = seeded(plain.k[i], m + 2 * N + i, plain.k[i]);
             }
-            integrate(robot, q, sections, &inp, model, None)
+            integrate(robot, q, sections, &inp, model, None, Tangents::identity())
         }
     };
-    implicit_columns::<T, N, K>(&out.r, &out.frame.p, &out.frame.r, m, 3 * N)
+    implicit_columns::<T, N, K>(&out.r, &out.frame.columns(), m, 3 * N)
 }
 
 /// Runs [`pass`] with the fewest directions `K` that hold `m + columns` (`N` is a
@@ -1001,6 +1021,78 @@ impl<T: Real, const N: usize> Solver<T, N> {
 mod tests {
     use super::*;
 
+    /// The spatial-twist derivatives ([`Tangents`]) equal the derivatives of the frame
+    /// carried entry by entry in dual numbers, in both the series and the closed-form
+    /// branches of the exponential (rigid sections turn by more than 0.3 rad).
+    #[test]
+    fn tangents_equal_dual_frames() {
+        let t = |od, id, len, cl, r| crate::TubeParams {
+            curvature_radius_mm: Some(r),
+            ..crate::TubeParams::<f64>::new(od, id, len, cl, 58000.0, 0.33)
+        };
+        let robot = Robot::new([
+            t(1.9, 1.6, 160.0, 80.0, 300.0),
+            t(1.4, 1.1, 220.0, 70.0, 180.0),
+            t(0.9, 0.6, 280.0, 50.0, 40.0),
+        ])
+        .unwrap();
+        let q = Joints::from_mm_deg([30.0, 60.0, 95.0], [10.0, 100.0, -60.0]);
+        let cfg = crate::SolverConfig::<f64>::default();
+        let k = robot.tubes().map(|t| t.curvature_per_mm());
+        let sections = Sections::new(&robot, &q.s_mm, &k, cfg.max_step_mm, cfg.step_fraction);
+        let sol = Solver::default().solve(&robot, &q, Model::Torsion).unwrap();
+        let mut inp = Inputs {
+            s: q.s_mm.map(Dual::<f64, 7>::cst),
+            theta: q.theta_rad.map(Dual::cst),
+            x: sol.base_twist_per_mm.map(Dual::cst),
+            ei: robot.tubes().map(|t| t.bending_stiffness_nmm2()),
+            gj: robot.tubes().map(|t| t.torsional_stiffness_nmm2()),
+            k,
+        };
+        for j in 0..2 {
+            inp.x[j] = seeded(sol.base_twist_per_mm[j], j, 1.0);
+        }
+        for i in 0..3 {
+            inp.s[i] = seeded(q.s_mm[i], 2 + i, 1.0);
+        }
+        for i in 0..2 {
+            inp.theta[i] = seeded(q.theta_rad[i], 5 + i, 1.0);
+        }
+        let mut largest = 0.0_f64;
+        for model in [Model::Rigid, Model::Torsion] {
+            let zero = Dual::cst(0.0);
+            let one = Dual::cst(1.0);
+            let a = integrate(
+                &robot,
+                &q,
+                &sections,
+                &inp,
+                model,
+                None,
+                GFrame::identity(zero, one),
+            );
+            let b = integrate(
+                &robot,
+                &q,
+                &sections,
+                &inp,
+                model,
+                None,
+                Tangents::<f64, 7>::identity(),
+            );
+            let want = crate::tangent::columns_of_duals(&a.frame.p, &a.frame.r);
+            let got = b.frame.columns();
+            for i in 0..3 {
+                assert!((b.frame.p[i] - a.frame.p[i].re).abs() < 1e-12);
+            }
+            for (w, g) in want.iter().zip(&got) {
+                let scale = w.norm().max(1.0);
+                largest = largest.max((w - g).norm() / scale);
+            }
+        }
+        assert!(largest < 1e-12, "largest relative difference {largest:e}");
+    }
+
     /// The generic integrator on plain numbers is the solver's pose pass.
     #[test]
     fn plain_pass_reproduces_the_solver() {
@@ -1021,7 +1113,15 @@ mod tests {
             let cfg = crate::SolverConfig::<f64>::default();
             let sections = Sections::new(&robot, &q.s_mm, &k, cfg.max_step_mm, cfg.step_fraction);
             let inp = Inputs::plain(&robot, &q, &sol.base_twist_per_mm);
-            let out = integrate(&robot, &q, &sections, &inp, model, None);
+            let out = integrate(
+                &robot,
+                &q,
+                &sections,
+                &inp,
+                model,
+                None,
+                GFrame::identity(0.0, 1.0),
+            );
             for i in 0..3 {
                 assert!((out.frame.p[i] - sol.tip.position[i]).abs() < 1e-12);
                 for j in 0..3 {

@@ -42,6 +42,7 @@ pub mod robot;
 pub mod se3;
 mod sections;
 pub mod solver;
+mod tangent;
 pub mod twist;
 
 pub use jacobian::{JointJacobian, ParameterJacobian};

@@ -655,8 +655,9 @@ impl<T: Real, const N: usize> Solver<T, N> {
             ],
         ];
         // r holds the residuals of the `unknowns` unknowns (the rest are zero)
+        let tangent = crate::tangent::columns_of_duals(&st.p, &rot);
         let cols = crate::jacobian::implicit_columns::<T, MAX_UNKNOWNS, COMPLIANCE_DIRECTIONS>(
-            &r, &st.p, &rot, unknowns, 6,
+            &r, &tangent, unknowns, 6,
         );
         let mut m = Matrix6::zeros();
         for (j, col) in cols.iter().take(6).enumerate() {
