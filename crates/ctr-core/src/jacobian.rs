@@ -958,6 +958,67 @@ impl<T: Real, const N: usize> Solver<T, N> {
         Ok((sol, jac))
     }
 
+    /// [`solve_jacobian`](Self::solve_jacobian) for the tip as
+    /// [`solve_with`](Self::solve_with) reports it: at the joints shifted by the
+    /// effects' offsets, the tracked point at the sensor offset, in the registered
+    /// measuring frame (columns `(dp, omega)` of the measured point and frame in the
+    /// measuring frame). Clearance kinks are not differentiated: with any clearance
+    /// profile set, the solution is `solve_with`'s and every Jacobian entry is NaN.
+    ///
+    /// ```
+    /// use ctr_core::{effects::{Effects, Registration}, Joints, Model, Robot, Solver, TubeParams};
+    /// let robot = Robot::new([TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)]).unwrap();
+    /// // a straight tube seen from a frame turned 90 degrees about x: feeding moves the
+    /// // measured tip along -y
+    /// let effects = Effects {
+    ///     registration: Some(Registration::from_axis_angle([1.0, 0.0, 0.0], core::f64::consts::FRAC_PI_2, [0.0; 3])),
+    ///     ..Default::default()
+    /// };
+    /// let q = Joints::new([50.0], [0.0]);
+    /// let (_, jac) = Solver::default().solve_jacobian_with(&robot, &q, Model::Torsion, &effects).unwrap();
+    /// assert!((jac.feed[0][1] + 1.0).abs() < 1e-12);
+    /// ```
+    pub fn solve_jacobian_with(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+        effects: &crate::effects::Effects<T, N>,
+    ) -> Result<(Solution<T, N>, JointJacobian<T, N>), JointError> {
+        if effects.clearance.iter().any(Option::is_some) {
+            let sol = self.solve_with(robot, q, model, effects)?;
+            let none = Vector6::from_element(nan::<T>());
+            return Ok((
+                sol,
+                JointJacobian {
+                    feed: [none; N],
+                    rotation: [none; N],
+                },
+            ));
+        }
+        let mut actual = *q;
+        for i in 0..N {
+            actual.s_mm[i] += effects.feed_offset_mm[i];
+            actual.theta_rad[i] += effects.rotation_offset_rad[i];
+        }
+        let (mut sol, mut jac) = self.solve_jacobian(robot, &actual, model)?;
+        // the tracked point p + R o moves with dp + omega x (R o); then the registration
+        // turns both blocks
+        let arm = sol.tip.rotation * nalgebra::Vector3::from(effects.sensor_offset_mm);
+        for col in jac.feed.iter_mut().chain(jac.rotation.iter_mut()) {
+            let omega = col.fixed_rows::<3>(3).into_owned();
+            let mut dp = col.fixed_rows::<3>(0) + omega.cross(&arm);
+            let mut w = omega;
+            if let Some(r) = &effects.registration {
+                dp = r.rotation * dp;
+                w = r.rotation * w;
+            }
+            *col = Vector6::new(dp[0], dp[1], dp[2], w[0], w[1], w[2]);
+        }
+        sol.tip = effects.measured(&sol.tip);
+        Ok((sol, jac))
+    }
+
     /// Solves the forward kinematics (warm-started) and returns the tip's
     /// [`ParameterJacobian`]: derivatives with respect to each tube's bending
     /// stiffness, torsional stiffness and precurvature scale factors, at 1.

@@ -329,3 +329,92 @@ fn f32_joint_jacobian_matches_f64() {
     }
     eprintln!("nitinol3: f32 joint Jacobian max relative error against f64 {worst:.3e}");
 }
+
+/// Static effects of a recording: joint offsets, a sensor offset and a registration.
+fn static_effects<const N: usize>() -> ctr_core::effects::Effects<f64, N> {
+    use ctr_core::effects::{Effects, Registration};
+    Effects {
+        feed_offset_mm: core::array::from_fn(|i| 0.7 - 0.4 * i as f64),
+        rotation_offset_rad: core::array::from_fn(|i| 0.05 * (i as f64 + 1.0)),
+        registration: Some(Registration::from_axis_angle(
+            [0.3, -1.0, 0.4],
+            0.6,
+            [12.0, -4.0, 30.0],
+        )),
+        sensor_offset_mm: [1.5, -0.8, 4.0],
+        ..Default::default()
+    }
+}
+
+fn joint_columns_with<const N: usize>(name: &str, seed: u64) -> f64 {
+    let robot: Robot<f64, N> = robot::<N>(name);
+    let effects = static_effects::<N>();
+    let mut rng = Rng(seed);
+    let mut worst = 0.0_f64;
+    for _ in 0..CONFIGS {
+        let q = random_joints::<N>(name, &mut rng);
+        let mut solver = tight_solver::<N>();
+        let (sol, jac) = solver
+            .solve_jacobian_with(&robot, &q, Model::Torsion, &effects)
+            .unwrap();
+        let plain = solver
+            .solve_with(&robot, &q, Model::Torsion, &effects)
+            .unwrap();
+        assert!((sol.tip.position - plain.tip.position).norm() < 1e-9);
+        for col in 0..2 * N {
+            let shifted = |d: f64| {
+                let mut p = q;
+                if col < N {
+                    p.s_mm[col] += d;
+                } else {
+                    p.theta_rad[col - N] += d;
+                }
+                let mut cold = tight_solver::<N>();
+                cold.solve_with(&robot, &p, Model::Torsion, &effects)
+                    .unwrap()
+                    .tip
+            };
+            let fd = difference(
+                &shifted(FD_STEP),
+                &shifted(-FD_STEP),
+                &sol.tip.rotation,
+                FD_STEP,
+            );
+            let got = jac.column(col).unwrap();
+            let rel = relative_error(&got, &fd);
+            assert!(
+                rel <= REL_TOL,
+                "{name} column {col} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+            );
+            worst = worst.max(rel);
+        }
+    }
+    eprintln!("{name}: joint Jacobian with static effects, max relative error {worst:.3e}");
+    worst
+}
+
+#[test]
+fn joint_jacobian_through_offsets_sensor_and_registration_matches_finite_differences() {
+    joint_columns_with::<2>("liu2023", 0x1234_5678_9ABC_DEF1);
+    joint_columns_with::<3>("nitinol3", 0x0FED_CBA9_8765_4321);
+}
+
+#[test]
+fn joint_jacobian_with_clearance_is_nan_and_the_tip_is_solve_withs() {
+    use ctr_core::effects::ClearanceProfile;
+    let robot: Robot<f64, 2> = robot::<2>("liu2023");
+    let mut effects = static_effects::<2>();
+    effects.clearance[0] = Some(ClearanceProfile::Cosine {
+        max_deflection_rad: 0.04,
+        peak_rad: 205f64.to_radians(),
+    });
+    let q = Joints::from_mm_deg([40.0, 90.0], [0.0, 120.0]);
+    let (sol, jac) = Solver::default()
+        .solve_jacobian_with(&robot, &q, Model::Torsion, &effects)
+        .unwrap();
+    let want = Solver::default()
+        .solve_with(&robot, &q, Model::Torsion, &effects)
+        .unwrap();
+    assert_eq!(sol.tip.position, want.tip.position);
+    assert!((0..4).all(|c| jac.column(c).unwrap().iter().all(|v| v.is_nan())));
+}
