@@ -5,12 +5,13 @@
 //! solver's warm-start memory for the current iterate, so that trial points and the
 //! finite-difference probes around the iterate start from its converged twist.
 //!
-//! [`tip_jacobian`] is the only place the Jacobian comes from. It uses central finite
-//! differences of the core FK solved to tight tolerances (`residual_tolerance_per_mm`
-//! [`FK_RESIDUAL_TOLERANCE`]) with steps [`FD_STEP_MM`] / [`FD_STEP_RAD`], one-sided
-//! where a probe would leave the joint limits. When ctr-core exposes analytic
-//! Jacobians as `Solver` methods, add a `jacobian` method to [`TipFk`] calling them and
-//! make [`tip_jacobian`] return its result; nothing else changes.
+//! [`tip_jacobian`] is the only place the Jacobian comes from. It takes the core's
+//! analytic joint Jacobian ([`TipFk::jacobian`]: `Solver::solve_jacobian_with`, through
+//! the joint offsets, sensor offset and registration) where the model has one, and
+//! otherwise (gravity, clearance kinks, a snap) central finite differences of the core
+//! FK solved to tight tolerances (`residual_tolerance_per_mm` [`FK_RESIDUAL_TOLERANCE`])
+//! with steps [`FD_STEP_MM`] / [`FD_STEP_RAD`], one-sided where a probe would leave the
+//! joint limits.
 
 use super::limits::JointLimits;
 use ctr_core::effects::Effects;
@@ -49,6 +50,10 @@ pub(crate) trait TipFk: Send + Sync {
     fn cold(&self, q: &[f64]) -> Option<Frame<f64>>;
     /// A copy with the same warm-start memory.
     fn boxed_clone(&self) -> Box<dyn TipFk>;
+    /// The analytic tip Jacobian at `q` (the current iterate), written into the first
+    /// `2 n` columns of `jac` as [`tip_jacobian`] lays them out; `false` (and `jac`
+    /// untouched) where the model has none.
+    fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool;
 }
 
 /// [`TipFk`] on the core's solver, with the robot file's static effects (the robot
@@ -174,6 +179,37 @@ impl<const N: usize> TipFk for CoreFk<N> {
     fn boxed_clone(&self) -> Box<dyn TipFk> {
         Box::new(*self)
     }
+
+    fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool {
+        if self.gravity.is_some() || q.len() != 2 * N {
+            return false;
+        }
+        let joints = Joints::new(
+            core::array::from_fn(|i| q[2 * i]),
+            core::array::from_fn(|i| q[2 * i + 1]),
+        );
+        let mut s = self.current;
+        let Ok((sol, analytic)) =
+            s.solve_jacobian_with(&self.robot, &joints, self.model, &self.effects)
+        else {
+            return false;
+        };
+        let converged =
+            sol.status == Status::Converged || sol.residual_per_mm <= FK_ACCEPT_RESIDUAL;
+        let finite = analytic
+            .feed
+            .iter()
+            .chain(&analytic.rotation)
+            .all(|c| c.iter().all(|v| v.is_finite()));
+        if !(converged && finite) {
+            return false;
+        }
+        for i in 0..N {
+            jac.set_column(2 * i, &analytic.feed[i]);
+            jac.set_column(2 * i + 1, &analytic.rotation[i]);
+        }
+        true
+    }
 }
 
 /// The rotation vector (axis times angle, angle in `[0, pi]`) of the rotation matrix
@@ -197,9 +233,10 @@ pub(crate) fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
 /// `fk`): rows 0..3 `d position / d q` (mm per mm or per rad), rows 3..6 the tip's
 /// angular velocity in W per unit joint rate. Written into the first `2 n` columns of `jac`.
 ///
-/// This is the single place to swap in the core's analytic Jacobian (see the module
-/// docs). Probes stay inside `limits`: a joint at a bound gets a one-sided difference;
-/// a joint pinned between two bounds (no probe possible either way) gets a zero column.
+/// The core's analytic Jacobian where [`TipFk::jacobian`] has one, else central
+/// differences (see the module docs) whose probes stay inside `limits`: a joint at a
+/// bound gets a one-sided difference. Either way a joint pinned between two bounds (no
+/// step of [`FD_STEP_MM`] / [`FD_STEP_RAD`] possible either way) gets a zero column.
 pub(crate) fn tip_jacobian(
     fk: &dyn TipFk,
     limits: &JointLimits,
@@ -208,6 +245,21 @@ pub(crate) fn tip_jacobian(
     jac: &mut Jacobian,
 ) {
     let n = q.len();
+    if fk.jacobian(q, jac) {
+        let mut probe_q = q.to_vec();
+        for j in 0..n {
+            let h = if j % 2 == 0 { FD_STEP_MM } else { FD_STEP_RAD };
+            let mut admits = |delta: f64| {
+                probe_q.copy_from_slice(q);
+                probe_q[j] += delta;
+                limits.admits(&probe_q)
+            };
+            if !admits(h) && !admits(-h) {
+                jac.column_mut(j).fill(0.0);
+            }
+        }
+        return;
+    }
     let mut probe_q = q.to_vec();
     let mut probe = |j: usize, delta: f64| -> Option<Frame<f64>> {
         probe_q.copy_from_slice(q);
@@ -239,8 +291,10 @@ pub(crate) fn tip_jacobian(
 
 impl super::Ik {
     /// The tip Jacobian at `joints` (file units: `s_1` mm, `theta_1` degrees, ...) as
-    /// the IK computes it: the central differences of `tip_jacobian` at the FK solved
-    /// cold with the IK's tight tolerances, probes kept inside this solver's limits.
+    /// the IK computes it, at the FK solved cold with the IK's tight tolerances: the
+    /// core's analytic Jacobian (through joint offsets, sensor offset and registration),
+    /// or, with gravity or clearance kinks, central differences with probes kept inside
+    /// this solver's limits.
     /// One column per joint, in joint order; in each, entries 0..3 are
     /// `d position / d joint` (mm per mm, mm per degree) and entries 3..6 the tip's
     /// angular velocity in W (rad per mm, rad per degree). `None` when the joints are
@@ -283,6 +337,105 @@ impl super::Ik {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`CoreFk`] without its analytic Jacobian: `tip_jacobian` falls back to differences.
+    struct DifferencesOnly<const N: usize>(CoreFk<N>);
+
+    impl<const N: usize> TipFk for DifferencesOnly<N> {
+        fn n_tubes(&self) -> usize {
+            N
+        }
+        fn reset(&mut self) {
+            self.0.reset()
+        }
+        fn trial(&mut self, q: &[f64]) -> Option<Frame<f64>> {
+            self.0.trial(q)
+        }
+        fn accept(&mut self) {
+            self.0.accept()
+        }
+        fn probe(&self, q: &[f64]) -> Option<Frame<f64>> {
+            self.0.probe(q)
+        }
+        fn cold(&self, q: &[f64]) -> Option<Frame<f64>> {
+            self.0.cold(q)
+        }
+        fn boxed_clone(&self) -> Box<dyn TipFk> {
+            Box::new(DifferencesOnly(self.0))
+        }
+        fn jacobian(&self, _: &[f64], _: &mut Jacobian) -> bool {
+            false
+        }
+    }
+
+    /// The analytic path of `tip_jacobian` (interleaved columns, effects chained)
+    /// equals its finite differences, with and without static effects; a joint pinned
+    /// by its limits gets a zero column on both paths.
+    #[test]
+    fn analytic_tip_jacobian_equals_the_differences() {
+        use ctr_core::effects::Registration;
+        use ctr_core::TubeParams;
+        let t = |od, id, len, cl, r| TubeParams {
+            curvature_radius_mm: Some(r),
+            ..TubeParams::<f64>::new(od, id, len, cl, 58000.0, 0.33)
+        };
+        let robot = Robot::new([
+            t(1.9, 1.6, 160.0, 80.0, 300.0),
+            t(1.4, 1.1, 220.0, 70.0, 180.0),
+            t(0.9, 0.6, 280.0, 50.0, 80.0),
+        ])
+        .unwrap();
+        let effects = Effects {
+            feed_offset_mm: [0.5, -0.3, 0.2],
+            rotation_offset_rad: [0.02, -0.04, 0.03],
+            registration: Some(Registration::from_axis_angle(
+                [1.0, 2.0, -0.5],
+                0.4,
+                [3.0, -1.0, 7.0],
+            )),
+            sensor_offset_mm: [0.8, 0.0, 3.0],
+            ..Default::default()
+        };
+        let q = [30.0, 0.2, 60.0, 1.7, 95.0, -1.0];
+        let limits = JointLimits::new(&[160.0, 220.0, 280.0], None).unwrap();
+        // the first feed pinned at 30 mm
+        let pinned = JointLimits::new(
+            &[160.0, 220.0, 280.0],
+            Some(&[
+                crate::formats::TubeLimits {
+                    s_mm: Some([30.0, 30.0]),
+                    ..Default::default()
+                },
+                Default::default(),
+                Default::default(),
+            ]),
+        )
+        .unwrap();
+        for e in [Effects::default(), effects] {
+            for model in [Model::Torsion, Model::Rigid] {
+                for lim in [&limits, &pinned] {
+                    let mut analytic = CoreFk::new(robot, model, e, None);
+                    let mut fd = DifferencesOnly(analytic);
+                    let tip = analytic.trial(&q).unwrap();
+                    analytic.accept();
+                    fd.trial(&q).unwrap();
+                    fd.accept();
+                    let (mut ja, mut jf) = (Jacobian::zeros(), Jacobian::zeros());
+                    assert!(analytic.jacobian(&q, &mut Jacobian::zeros()));
+                    tip_jacobian(&analytic, lim, &q, &tip, &mut ja);
+                    tip_jacobian(&fd, lim, &q, &tip, &mut jf);
+                    for c in 0..6 {
+                        let (a, f) = (ja.column(c), jf.column(c));
+                        let err = (a - f).norm() / f.norm().max(1e-9);
+                        assert!(err < 1e-6, "{model:?} column {c}: {err:e}\n{a}\n{f}");
+                    }
+                    if std::ptr::eq(lim, &pinned) {
+                        assert_eq!(ja.column(0).norm(), 0.0);
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn log_so3_inverts_the_exponential() {
