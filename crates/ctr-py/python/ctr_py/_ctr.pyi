@@ -178,9 +178,10 @@ class Robot:
         Column ``j`` is the derivative with respect to joint ``j`` in file units (per mm
         for a feed, per degree for a rotation); rows 0-2 the tip position (mm), rows
         3-5 the tip's angular velocity in W (rad). Computed as the inverse kinematics
-        computes it: central finite differences of the forward kinematics solved to
-        tight tolerances (1e-13 rad/mm), one-sided at the core's joint bounds (the
-        robot file's ``[limits]`` do not apply here). Raises
+        computes it, at the forward kinematics solved to tight tolerances (1e-13
+        rad/mm): the core's analytic Jacobian from integrated sensitivities, or, with
+        gravity or clearance kinks, central finite differences, one-sided at the core's
+        joint bounds (the robot file's ``[limits]`` do not apply here). Raises
         :class:`~ctr_py.SolverError` where the forward kinematics does not converge.
         The forward kinematics is the file's static model with its effects (as in
         :meth:`ik`): the Jacobian of the measured tip with respect to the commanded
