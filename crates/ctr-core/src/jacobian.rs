@@ -1082,11 +1082,9 @@ impl<T: Real, const N: usize> Solver<T, N> {
 mod tests {
     use super::*;
 
-    /// The spatial-twist derivatives ([`Tangents`]) equal the derivatives of the frame
-    /// carried entry by entry in dual numbers, in both the series and the closed-form
-    /// branches of the exponential (rigid sections turn by more than 0.3 rad).
-    #[test]
-    fn tangents_equal_dual_frames() {
+    /// Three precurved tubes, the innermost with radius `r` mm, at a configuration where
+    /// every tube is exposed.
+    fn three_tubes(r: f64) -> (Robot<f64, 3>, Joints<f64, 3>) {
         let t = |od, id, len, cl, r| crate::TubeParams {
             curvature_radius_mm: Some(r),
             ..crate::TubeParams::<f64>::new(od, id, len, cl, 58000.0, 0.33)
@@ -1094,10 +1092,19 @@ mod tests {
         let robot = Robot::new([
             t(1.9, 1.6, 160.0, 80.0, 300.0),
             t(1.4, 1.1, 220.0, 70.0, 180.0),
-            t(0.9, 0.6, 280.0, 50.0, 40.0),
+            t(0.9, 0.6, 280.0, 50.0, r),
         ])
         .unwrap();
         let q = Joints::from_mm_deg([30.0, 60.0, 95.0], [10.0, 100.0, -60.0]);
+        (robot, q)
+    }
+
+    /// The spatial-twist derivatives ([`Tangents`]) equal the derivatives of the frame
+    /// carried entry by entry in dual numbers, in both the series and the closed-form
+    /// branches of the exponential (rigid sections turn by more than 0.3 rad).
+    #[test]
+    fn tangents_equal_dual_frames() {
+        let (robot, q) = three_tubes(40.0);
         let cfg = crate::SolverConfig::<f64>::default();
         let k = robot.tubes().map(|t| t.curvature_per_mm());
         let sections = Sections::new(&robot, &q.s_mm, &k, cfg.max_step_mm, cfg.step_fraction);
@@ -1157,17 +1164,7 @@ mod tests {
     /// The generic integrator on plain numbers is the solver's pose pass.
     #[test]
     fn plain_pass_reproduces_the_solver() {
-        let t = |od, id, len, cl, r| crate::TubeParams {
-            curvature_radius_mm: Some(r),
-            ..crate::TubeParams::<f64>::new(od, id, len, cl, 58000.0, 0.33)
-        };
-        let robot = Robot::new([
-            t(1.9, 1.6, 160.0, 80.0, 300.0),
-            t(1.4, 1.1, 220.0, 70.0, 180.0),
-            t(0.9, 0.6, 280.0, 50.0, 80.0),
-        ])
-        .unwrap();
-        let q = Joints::from_mm_deg([30.0, 60.0, 95.0], [10.0, 100.0, -60.0]);
+        let (robot, q) = three_tubes(80.0);
         for model in [Model::Rigid, Model::Torsion] {
             let sol = Solver::default().solve(&robot, &q, model).unwrap();
             let k = robot.tubes().map(|t| t.curvature_per_mm());

@@ -85,14 +85,26 @@ fn relative_error(got: &Vector6<f64>, fd: &Vector6<f64>) -> f64 {
     block(0).max(block(3))
 }
 
-fn joint_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64 {
+/// Worst relative error of the joint Jacobian against central differences at random
+/// configurations: of `solve_jacobian`'s plain tip, or with `effects` of
+/// `solve_jacobian_with`'s measured tip against differences of `solve_with`.
+fn joint_columns<const N: usize>(
+    name: &str,
+    model: Model,
+    seed: u64,
+    effects: Option<&ctr_core::effects::Effects<f64, N>>,
+) -> f64 {
     let robot: Robot<f64, N> = robot::<N>(name);
     let mut rng = Rng(seed);
     let mut worst = 0.0_f64;
     for _ in 0..CONFIGS {
         let q = random_joints::<N>(name, &mut rng);
         let mut solver = tight_solver::<N>();
-        let (sol, jac) = solver.solve_jacobian(&robot, &q, model).unwrap();
+        let (sol, jac) = match effects {
+            None => solver.solve_jacobian(&robot, &q, model),
+            Some(e) => solver.solve_jacobian_with(&robot, &q, model, e),
+        }
+        .unwrap();
         assert_eq!(sol.status, Status::Converged, "{name} {q:?}");
         for col in 0..2 * N {
             let shifted = |d: f64| {
@@ -102,7 +114,12 @@ fn joint_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64 {
                 } else {
                     p.theta_rad[col - N] += d;
                 }
-                let s = solver.solve_cold(&robot, &p, model).unwrap();
+                let mut cold = tight_solver::<N>();
+                let s = match effects {
+                    None => cold.solve(&robot, &p, model),
+                    Some(e) => cold.solve_with(&robot, &p, model, e),
+                }
+                .unwrap();
                 assert_eq!(s.status, Status::Converged);
                 s.tip
             };
@@ -121,16 +138,21 @@ fn joint_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64 {
             worst = worst.max(rel);
         }
     }
-    eprintln!("{name} {model:?}: joint Jacobian max relative error {worst:.3e}");
+    let with = if effects.is_some() {
+        " with static effects"
+    } else {
+        ""
+    };
+    eprintln!("{name} {model:?}: joint Jacobian{with} max relative error {worst:.3e}");
     worst
 }
 
 #[test]
 fn joint_jacobian_matches_finite_differences() {
     for model in [Model::Torsion, Model::Rigid] {
-        joint_columns::<2>("liu2023", model, 0x9E37_79B9_7F4A_7C15);
-        joint_columns::<2>("nitinol2", model, 0xD1B5_4A32_D192_ED03);
-        joint_columns::<3>("nitinol3", model, 0x8CB9_2BA7_2F3D_8DD7);
+        joint_columns::<2>("liu2023", model, 0x9E37_79B9_7F4A_7C15, None);
+        joint_columns::<2>("nitinol2", model, 0xD1B5_4A32_D192_ED03, None);
+        joint_columns::<3>("nitinol3", model, 0x8CB9_2BA7_2F3D_8DD7, None);
     }
 }
 
@@ -346,57 +368,11 @@ fn static_effects<const N: usize>() -> ctr_core::effects::Effects<f64, N> {
     }
 }
 
-fn joint_columns_with<const N: usize>(name: &str, seed: u64) -> f64 {
-    let robot: Robot<f64, N> = robot::<N>(name);
-    let effects = static_effects::<N>();
-    let mut rng = Rng(seed);
-    let mut worst = 0.0_f64;
-    for _ in 0..CONFIGS {
-        let q = random_joints::<N>(name, &mut rng);
-        let mut solver = tight_solver::<N>();
-        let (sol, jac) = solver
-            .solve_jacobian_with(&robot, &q, Model::Torsion, &effects)
-            .unwrap();
-        let plain = solver
-            .solve_with(&robot, &q, Model::Torsion, &effects)
-            .unwrap();
-        assert!((sol.tip.position - plain.tip.position).norm() < 1e-9);
-        for col in 0..2 * N {
-            let shifted = |d: f64| {
-                let mut p = q;
-                if col < N {
-                    p.s_mm[col] += d;
-                } else {
-                    p.theta_rad[col - N] += d;
-                }
-                let mut cold = tight_solver::<N>();
-                cold.solve_with(&robot, &p, Model::Torsion, &effects)
-                    .unwrap()
-                    .tip
-            };
-            let fd = difference(
-                &shifted(FD_STEP),
-                &shifted(-FD_STEP),
-                &sol.tip.rotation,
-                FD_STEP,
-            );
-            let got = jac.column(col).unwrap();
-            let rel = relative_error(&got, &fd);
-            assert!(
-                rel <= REL_TOL,
-                "{name} column {col} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
-            );
-            worst = worst.max(rel);
-        }
-    }
-    eprintln!("{name}: joint Jacobian with static effects, max relative error {worst:.3e}");
-    worst
-}
-
 #[test]
 fn joint_jacobian_through_offsets_sensor_and_registration_matches_finite_differences() {
-    joint_columns_with::<2>("liu2023", 0x1234_5678_9ABC_DEF1);
-    joint_columns_with::<3>("nitinol3", 0x0FED_CBA9_8765_4321);
+    let (e2, e3) = (static_effects::<2>(), static_effects::<3>());
+    joint_columns::<2>("liu2023", Model::Torsion, 0x1234_5678_9ABC_DEF1, Some(&e2));
+    joint_columns::<3>("nitinol3", Model::Torsion, 0x0FED_CBA9_8765_4321, Some(&e3));
 }
 
 #[test]
