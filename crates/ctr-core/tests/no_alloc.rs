@@ -57,6 +57,16 @@ fn solves_allocate_nothing() {
         gravity: Some(ctr_core::Gravity::new([-1.0, 0.0, 0.0], 9.81)),
         ..Default::default()
     };
+    let effects = ctr_core::effects::Effects::<f64, 3> {
+        feed_offset_mm: [0.2, -0.1, 0.3],
+        registration: Some(ctr_core::effects::Registration::from_axis_angle(
+            [0.0, 1.0, 0.0],
+            0.3,
+            [1.0, 2.0, 3.0],
+        )),
+        sensor_offset_mm: [0.0, 0.5, 2.0],
+        ..Default::default()
+    };
     let n = allocations_during(|| {
         for (r3, r2) in rows3.iter().zip(&rows2) {
             checksum += solver3
@@ -94,6 +104,10 @@ fn solves_allocate_nothing() {
                 .solve_jacobian(&robot3, &r3.q, Model::Torsion)
                 .unwrap();
             checksum += sol.tip.position.x + jac.feed[2][0] + jac.rotation[0][1];
+            let (_, jac) = solver3
+                .solve_jacobian_with(&robot3, &r3.q, Model::Torsion, &effects)
+                .unwrap();
+            checksum += jac.feed[1][2];
             let (_, pj) = solver2
                 .solve_parameter_jacobian(&robot2, &r2.q, Model::Rigid)
                 .unwrap();

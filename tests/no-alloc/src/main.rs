@@ -59,6 +59,13 @@ fn solve3<T: ctr_core::Real>(x: T) -> T {
     if let Ok((sol, jac)) = solver.solve_jacobian(&robot, &q, Model::Torsion) {
         sum += sol.tip.position.x + jac.feed[0][0] + jac.rotation[2][5];
     }
+    let effects = ctr_core::effects::Effects {
+        sensor_offset_mm: [T::zero(), T::zero(), T::one()],
+        ..Default::default()
+    };
+    if let Ok((_, jac)) = solver.solve_jacobian_with(&robot, &q, Model::Torsion, &effects) {
+        sum += jac.feed[0][1];
+    }
     if let Ok((_, jac)) = solver.solve_parameter_jacobian(&robot, &q, Model::Torsion) {
         sum += jac.curvature[1][1];
     }
