@@ -11,7 +11,11 @@
 //!   measures `delta` as a table over the relative angle, largest near 205 degrees on
 //!   its robot; [`ClearanceProfile::Cosine`] is the smooth one-harmonic form
 //!   `delta = delta_max (1 + cos(phi - phi_peak)) / 2`, [`ClearanceProfile::Table`] the
-//!   measured table with periodic linear interpolation.
+//!   measured table with periodic linear interpolation. The seed's correction of the
+//!   rotation angle at that point (`Delta theta = theta_2 + theta_1 - beta`, eq. 17, the
+//!   twist the tubes took between the actuators and the outer tip) is built in: the
+//!   kink is applied about the inner tube's actual bending direction from the torsion
+//!   solve, not the commanded one, so it needs no separate term.
 //! - `registration`: the measuring frame is offset or rotated from W:
 //!   `p_measured = R p_W + t`, orientations `R R_tip`.
 //! - `sensor_offset`: the tracked point sits at a fixed offset in the tip frame:
