@@ -24,6 +24,7 @@
 //! - `gravity` and tip loads: [`crate::loads`]. `friction`: [`crate::friction`].
 //! - `latency` needs a recording's time series and lives in the std crate.
 
+use crate::joints::Joints;
 use crate::real::{c, Real};
 use crate::se3::Frame;
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
@@ -220,6 +221,24 @@ impl<T: Real, const N: usize> Default for Effects<T, N> {
 }
 
 impl<T: Real, const N: usize> Effects<T, N> {
+    /// The joints the tubes actually take for the commanded `q`: `q` plus the joint
+    /// offsets.
+    ///
+    /// ```
+    /// use ctr_core::{effects::Effects, Joints};
+    /// let e = Effects::<f64, 1> { feed_offset_mm: [0.5], rotation_offset_rad: [0.1], ..Default::default() };
+    /// let q = e.actual(&Joints::new([40.0], [1.0]));
+    /// assert_eq!((q.s_mm[0], q.theta_rad[0]), (40.5, 1.1));
+    /// ```
+    pub fn actual(&self, q: &Joints<T, N>) -> Joints<T, N> {
+        let mut actual = *q;
+        for i in 0..N {
+            actual.s_mm[i] += self.feed_offset_mm[i];
+            actual.theta_rad[i] += self.rotation_offset_rad[i];
+        }
+        actual
+    }
+
     /// The tip frame as measured: the sensor offset in the tip frame, then the
     /// registration.
     ///

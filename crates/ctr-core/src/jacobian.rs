@@ -996,12 +996,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 },
             ));
         }
-        let mut actual = *q;
-        for i in 0..N {
-            actual.s_mm[i] += effects.feed_offset_mm[i];
-            actual.theta_rad[i] += effects.rotation_offset_rad[i];
-        }
-        let (mut sol, mut jac) = self.solve_jacobian(robot, &actual, model)?;
+        let (mut sol, mut jac) = self.solve_jacobian(robot, &effects.actual(q), model)?;
         // the tracked point p + R o moves with dp + omega x (R o); then the registration
         // turns both blocks
         let arm = sol.tip.rotation * nalgebra::Vector3::from(effects.sensor_offset_mm);

@@ -286,11 +286,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         model: Model,
         effects: &Effects<T, N>,
     ) -> Result<Solution<T, N>, JointError> {
-        let mut actual = *q;
-        for i in 0..N {
-            actual.s_mm[i] += effects.feed_offset_mm[i];
-            actual.theta_rad[i] += effects.rotation_offset_rad[i];
-        }
+        let actual = effects.actual(q);
         let (mut sol, _) = self.solve_effects(robot, &actual, model, None, &effects.clearance)?;
         sol.tip = effects.measured(&sol.tip);
         Ok(sol)

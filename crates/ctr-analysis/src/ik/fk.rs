@@ -108,15 +108,11 @@ impl<const N: usize> CoreFk<N> {
                 .solve_with(&self.robot, joints, self.model, &self.effects)
                 .ok(),
             Some(g) => {
-                let mut actual = *joints;
-                for i in 0..N {
-                    actual.s_mm[i] += self.effects.feed_offset_mm[i];
-                    actual.theta_rad[i] += self.effects.rotation_offset_rad[i];
-                }
                 let loads = Loads {
                     gravity: Some(g),
                     ..Default::default()
                 };
+                let actual = self.effects.actual(joints);
                 let mut sol = solver.solve_loaded(&self.robot, &actual, &loads).ok()?;
                 sol.tip = self.effects.measured(&sol.tip);
                 Some(sol)
@@ -124,15 +120,24 @@ impl<const N: usize> CoreFk<N> {
         }
     }
 
-    fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Frame<f64>> {
-        let joints = Joints::new(
+    /// The joint slice `s_1, theta_1, ...` as the core's joints.
+    fn joints(q: &[f64]) -> Joints<f64, N> {
+        Joints::new(
             core::array::from_fn(|i| q[2 * i]),
             core::array::from_fn(|i| q[2 * i + 1]),
-        );
-        let ok = |sol: &ctr_core::Solution<f64, N>| {
-            (sol.status == Status::Converged || sol.residual_per_mm <= FK_ACCEPT_RESIDUAL)
-                && sol.tip.position.iter().all(|v| v.is_finite())
-        };
+        )
+    }
+
+    /// Whether a solve is good enough for the IK: converged (or at the rounding floor
+    /// below [`FK_ACCEPT_RESIDUAL`]) with a finite tip.
+    fn accepted(sol: &ctr_core::Solution<f64, N>) -> bool {
+        (sol.status == Status::Converged || sol.residual_per_mm <= FK_ACCEPT_RESIDUAL)
+            && sol.tip.position.iter().all(|v| v.is_finite())
+    }
+
+    fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Frame<f64>> {
+        let joints = Self::joints(q);
+        let ok = Self::accepted;
         let sol = self.solve_once(solver, &joints)?;
         if ok(&sol) {
             return Some(sol.tip);
@@ -184,24 +189,18 @@ impl<const N: usize> TipFk for CoreFk<N> {
         if self.gravity.is_some() || q.len() != 2 * N {
             return false;
         }
-        let joints = Joints::new(
-            core::array::from_fn(|i| q[2 * i]),
-            core::array::from_fn(|i| q[2 * i + 1]),
-        );
         let mut s = self.current;
         let Ok((sol, analytic)) =
-            s.solve_jacobian_with(&self.robot, &joints, self.model, &self.effects)
+            s.solve_jacobian_with(&self.robot, &Self::joints(q), self.model, &self.effects)
         else {
             return false;
         };
-        let converged =
-            sol.status == Status::Converged || sol.residual_per_mm <= FK_ACCEPT_RESIDUAL;
         let finite = analytic
             .feed
             .iter()
             .chain(&analytic.rotation)
             .all(|c| c.iter().all(|v| v.is_finite()));
-        if !(converged && finite) {
+        if !(Self::accepted(&sol) && finite) {
             return false;
         }
         for i in 0..N {
