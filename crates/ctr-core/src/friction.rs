@@ -27,7 +27,6 @@ use crate::jacobian::{integrate, GFrame, Inputs};
 use crate::joints::{JointError, Joints};
 use crate::real::Real;
 use crate::robot::Robot;
-use crate::sections::Sections;
 use crate::solver::{solve_linear, Model, Solution, Solver, Status};
 use crate::tangent::NoPose;
 use crate::Frame;
@@ -333,14 +332,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         if coefficient.iter().all(|v| *v == T::zero()) || free.status != Status::Converged {
             return Ok(free);
         }
-        let k = robot.tubes().map(|t| t.curvature_per_mm());
-        let sections = Sections::new(
-            robot,
-            &q.s_mm,
-            &k,
-            self.config.max_step_mm,
-            self.config.step_fraction,
-        );
+        let sections = self.sections(robot, q);
         let m = N - 1;
         let mut x = free.base_twist_per_mm;
         let plain = Inputs::plain(robot, q, &x);

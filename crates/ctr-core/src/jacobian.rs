@@ -162,13 +162,22 @@ impl<S: Copy + Add<Output = S> + Sub<Output = S> + Mul<Output = S> + Neg<Output 
 pub(crate) type V3<S> = [S; 3];
 pub(crate) type M3<S> = [[S; 3]; 3];
 
+/// `a x b`.
 #[inline(always)]
-fn cross<S: Ring>(a: &V3<S>, b: &V3<S>) -> V3<S> {
+pub(crate) fn cross<S: Ring>(a: &V3<S>, b: &V3<S>) -> V3<S> {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
+}
+
+/// The 3 x 3 product `a b`.
+#[inline(always)]
+pub(crate) fn mat_mul<S: Ring>(a: &M3<S>, b: &M3<S>) -> M3<S> {
+    core::array::from_fn(|i| {
+        core::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
+    })
 }
 
 /// A frame: rotation (row-major, columns the frame's axes in W) and origin.
@@ -209,10 +218,8 @@ impl<S: Ring> GFrame<S> {
         let m = self.r;
         for i in 0..3 {
             self.p[i] = self.p[i] + m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2];
-            for j in 0..3 {
-                self.r[i][j] = m[i][0] * r[0][j] + m[i][1] * r[1][j] + m[i][2] * r[2][j];
-            }
         }
+        self.r = mat_mul(&m, r);
     }
     /// Rotates the frame about its own z axis by the angle whose (cos, sin) is given.
     #[inline(always)]
@@ -831,7 +838,7 @@ fn pass<T: Real, const N: usize, const K: usize>(
     let dual = |a: &[T; N]| a.map(Dual::<T, K>::cst);
     let seed_x = |xs: &mut [Dual<T, K>; N]| {
         for j in 0..m {
-            xs[j] = seeded(x[j], j, T::one());
+            xs[j] = Dual::var(x[j], j);
         }
     };
     let out = match wrt {
@@ -847,10 +854,10 @@ fn pass<T: Real, const N: usize, const K: usize>(
             };
             seed_x(&mut inp.x);
             for i in 0..N {
-                inp.s[i] = seeded(plain.s[i], m + i, T::one());
+                inp.s[i] = Dual::var(plain.s[i], m + i);
             }
             for i in 0..N - 1 {
-                inp.theta[i] = seeded(plain.theta[i], m + N + i, T::one());
+                inp.theta[i] = Dual::var(plain.theta[i], m + N + i);
             }
             let pass = integrate(robot, q, sections, &inp, model, None, Tangents::identity());
             let tangent = pass.frame.columns();
@@ -939,8 +946,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         q: &Joints<T, N>,
         model: Model,
     ) -> Result<(Solution<T, N>, JointJacobian<T, N>), JointError> {
-        let sol = self.solve(robot, q, model)?;
-        let cols = self.columns(robot, q, &sol, model, Wrt::Joints);
+        let (sol, cols) = self.solve_columns(robot, q, model, Wrt::Joints)?;
         let mut jac = JointJacobian {
             feed: [Vector6::zeros(); N],
             rotation: [Vector6::zeros(); N],
@@ -1035,8 +1041,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
         q: &Joints<T, N>,
         model: Model,
     ) -> Result<(Solution<T, N>, ParameterJacobian<T, N>), JointError> {
-        let sol = self.solve(robot, q, model)?;
-        let cols = self.columns(robot, q, &sol, model, Wrt::Parameters);
+        let (sol, cols) = self.solve_columns(robot, q, model, Wrt::Parameters)?;
         let mut jac = ParameterJacobian {
             bending_stiffness: [Vector6::zeros(); N],
             torsional_stiffness: [Vector6::zeros(); N],
@@ -1053,23 +1058,19 @@ impl<T: Real, const N: usize> Solver<T, N> {
         Ok((sol, jac))
     }
 
-    fn columns(
-        &self,
+    /// Solves (as [`solve`](Self::solve)) and runs the dual pass on the same sections.
+    fn solve_columns(
+        &mut self,
         robot: &Robot<T, N>,
         q: &Joints<T, N>,
-        sol: &Solution<T, N>,
         model: Model,
         wrt: Wrt,
-    ) -> [Vector6<T>; MAX_COLUMNS] {
-        let k = robot.tubes().map(|t| t.curvature_per_mm());
-        let sections = Sections::new(
-            robot,
-            &q.s_mm,
-            &k,
-            self.config.max_step_mm,
-            self.config.step_fraction,
-        );
-        dispatch(robot, q, &sections, &sol.base_twist_per_mm, model, wrt)
+    ) -> Result<(Solution<T, N>, [Vector6<T>; MAX_COLUMNS]), JointError> {
+        q.validate(robot)?;
+        let sections = self.sections(robot, q);
+        let (sol, _) = self.solve_sections(robot, q, model, &sections, None, &[None; N]);
+        let cols = dispatch(robot, q, &sections, &sol.base_twist_per_mm, model, wrt);
+        Ok((sol, cols))
     }
 }
 
@@ -1113,13 +1114,13 @@ mod tests {
             k,
         };
         for j in 0..2 {
-            inp.x[j] = seeded(sol.base_twist_per_mm[j], j, 1.0);
+            inp.x[j] = Dual::var(sol.base_twist_per_mm[j], j);
         }
         for i in 0..3 {
-            inp.s[i] = seeded(q.s_mm[i], 2 + i, 1.0);
+            inp.s[i] = Dual::var(q.s_mm[i], 2 + i);
         }
         for i in 0..2 {
-            inp.theta[i] = seeded(q.theta_rad[i], 5 + i, 1.0);
+            inp.theta[i] = Dual::var(q.theta_rad[i], 5 + i);
         }
         let mut largest = 0.0_f64;
         for model in [Model::Rigid, Model::Torsion] {

@@ -25,6 +25,7 @@
 //! linear), so it is not an unknown.
 
 use crate::dual::{Dual, Num};
+use crate::jacobian::cross;
 use crate::joints::{JointError, Joints};
 use crate::real::{c, Real};
 use crate::robot::Robot;
@@ -195,15 +196,6 @@ impl<T: Real, const N: usize> Ctx<T, N> {
             tip[2] + S::cst(w.z),
         ]
     }
-}
-
-#[inline(always)]
-fn cross<T: Real, S: Num<T>>(a: &[S; 3], b: &[S; 3]) -> [S; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 #[inline(always)]
@@ -474,14 +466,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
             }
         }
-        let k = robot.tubes().map(|t| t.curvature_per_mm());
-        let sections = Sections::new(
-            robot,
-            &q.s_mm,
-            &k,
-            self.config.max_step_mm,
-            self.config.step_fraction,
-        );
+        let sections = self.sections(robot, q);
         let ctx = Ctx {
             gj: robot.tubes().map(|t| t.torsional_stiffness_nmm2()),
             weight,

@@ -311,32 +311,50 @@ impl<T: Real, const N: usize> Solver<T, N> {
         clearance: &[Option<ClearanceProfile<T>>; N],
     ) -> Result<(Solution<T, N>, usize), JointError> {
         q.validate(robot)?;
+        let sections = self.sections(robot, q);
+        Ok(self.solve_sections(robot, q, model, &sections, points, clearance))
+    }
+
+    /// The backbone's sections at `q` with this solver's step settings.
+    pub(crate) fn sections(&self, robot: &Robot<T, N>, q: &Joints<T, N>) -> Sections<T, N> {
         let k = robot.tubes().map(|t| t.curvature_per_mm());
-        let sections = Sections::new(
+        Sections::new(
             robot,
             &q.s_mm,
             &k,
             self.config.max_step_mm,
             self.config.step_fraction,
-        );
+        )
+    }
+
+    /// [`solve_effects`](Self::solve_effects) on validated joints and their sections.
+    pub(crate) fn solve_sections(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+        model: Model,
+        sections: &Sections<T, N>,
+        points: Option<&mut [Vector3<T>]>,
+        clearance: &[Option<ClearanceProfile<T>>; N],
+    ) -> (Solution<T, N>, usize) {
         let mut sink = PointSink {
             buf: points,
             written: 0,
             needed: 0,
         };
         let (sol, n) = match model {
-            Model::Rigid => (rigid(q, &sections, clearance, &mut sink), sink.needed),
+            Model::Rigid => (rigid(q, sections, clearance, &mut sink), sink.needed),
             Model::Torsion => {
                 let guess = self.guess(q);
                 let cold = self.warm.count == 0;
-                let mut sol = self.shoot(robot, q, &sections, guess, cold, clearance, &mut sink);
+                let mut sol = self.shoot(robot, q, sections, guess, cold, clearance, &mut sink);
                 if sol.status != Status::Converged && !cold {
                     // a warm start from far away can land in another basin: retry cold
                     let iterations = sol.iterations;
                     sol = self.shoot(
                         robot,
                         q,
-                        &sections,
+                        sections,
                         [T::zero(); N],
                         true,
                         clearance,
@@ -350,7 +368,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 (sol, sink.needed)
             }
         };
-        Ok((sol, n))
+        (sol, n)
     }
 
     /// Warm-start guess: linear extrapolation of the last two solutions along the

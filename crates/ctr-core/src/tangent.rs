@@ -40,7 +40,7 @@
 //! Jacobians.
 
 use crate::dual::Dual;
-use crate::jacobian::{series, M3, V3};
+use crate::jacobian::{cross, mat_mul, series, M3, V3};
 use crate::real::{c, Real};
 use crate::se3::SERIES_LIMIT_SQ;
 use nalgebra::Vector6;
@@ -83,26 +83,6 @@ pub(crate) struct Tangents<T, const K: usize> {
     pub phi: [[T; K]; 3],
     /// `rho[i][k]`: component i of direction k's linear part
     pub rho: [[T; K]; 3],
-}
-
-#[inline(always)]
-fn cross<T: Real>(a: &V3<T>, b: &V3<T>) -> V3<T> {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-#[inline(always)]
-fn mat_mul<T: Real>(a: &M3<T>, b: &M3<T>) -> M3<T> {
-    let mut o = [[T::zero(); 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            o[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-    o
 }
 
 /// `(a, b, d, b', d')` of the SE(3) exponential at `t2 = |w|^2` (see the

@@ -284,6 +284,13 @@ pub(crate) fn section<T: Real, const N: usize, const SENS: bool, const POSE: boo
     let half = h * nalgebra::convert(0.5);
     let sixth = h / nalgebra::convert(6.0);
     let mut k1 = rhs::<T, N, SENS>(sec, gj, st);
+    // tube n's body rate and its derivative at the step's start (the last step's end)
+    let (mut a0, mut d0) = if POSE {
+        let (un0, _) = inner_twist::<T, N, false>(&sec.present, gj, &st.w, &st.dw);
+        (body_rate(sec, st, un0), body_rate_derivative(sec, gj, &k1))
+    } else {
+        (Vector3::zeros(), Vector3::zeros())
+    };
     for _ in 0..n {
         let k2 = rhs::<T, N, SENS>(sec, gj, &st.step::<SENS>(&k1, half));
         let k3 = rhs::<T, N, SENS>(sec, gj, &st.step::<SENS>(&k2, half));
@@ -312,11 +319,8 @@ pub(crate) fn section<T: Real, const N: usize, const SENS: bool, const POSE: boo
         }
         let k1_next = rhs::<T, N, SENS>(sec, gj, &next);
         if POSE {
-            let (un0, _) = inner_twist::<T, N, false>(&sec.present, gj, &st.w, &st.dw);
             let (un1, _) = inner_twist::<T, N, false>(&sec.present, gj, &next.w, &next.dw);
-            let a0 = body_rate(sec, st, un0);
             let a1 = body_rate(sec, &next, un1);
-            let d0 = body_rate_derivative(sec, gj, &k1);
             let d1 = body_rate_derivative(sec, gj, &k1_next);
             let h2_12 = h * h / nalgebra::convert(12.0);
             let e3 = Vector3::z();
@@ -325,6 +329,8 @@ pub(crate) fn section<T: Real, const N: usize, const SENS: bool, const POSE: boo
             let (r, p) = exp(omega, v);
             frame.compose(&r, &p);
             sink.push(&frame.position);
+            a0 = a1;
+            d0 = d1;
         }
         *st = next;
         k1 = k1_next;
