@@ -21,10 +21,11 @@
 
 use crate::error::ErrorKind;
 use crate::formats::{Effects, RobotSpec};
+use crate::robot::joints_of;
 use crate::robot::{AnyRobot, FkResult, FkSolver};
 use crate::timeline::actual_joints;
 use ctr_core::effects::Effects as CoreEffects;
-use ctr_core::{Gravity, Joints, LoadError, Loads, Model, Robot, Solver};
+use ctr_core::{Gravity, LoadError, Loads, Model, Robot, Solver};
 use std::fmt;
 use std::ops::Range;
 
@@ -291,10 +292,7 @@ struct Effective<const N: usize> {
 
 impl<const N: usize> Effective<N> {
     fn solve(&mut self, a: &[f64]) -> Result<FkResult, LoadError> {
-        let q = Joints::from_mm_deg(
-            core::array::from_fn(|i| a[2 * i]),
-            core::array::from_fn(|i| a[2 * i + 1]),
-        );
+        let q = joints_of::<N>(a);
         let sol = if self.gravity.is_some() {
             let loads = Loads {
                 gravity: self.gravity,

@@ -86,7 +86,8 @@ pub fn canonical_quaternion(q: &UnitQuaternion<f64>) -> [f64; 4] {
     }
 }
 
-fn joints_of<const N: usize>(joints: &[f64]) -> Joints<f64, N> {
+/// A file-order joint vector (`s1_mm, theta1_deg, ...`) as the core's joints.
+pub(crate) fn joints_of<const N: usize>(joints: &[f64]) -> Joints<f64, N> {
     assert_eq!(
         joints.len(),
         2 * N,

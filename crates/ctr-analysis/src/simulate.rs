@@ -8,9 +8,10 @@
 //! kinks), and the tip is reported as measured (sensor offset, then registration).
 
 use crate::formats::{Effects, Recording, RobotSpec};
+use crate::robot::joints_of;
 use crate::robot::AnyRobot;
 use crate::timeline::actual_joints;
-use ctr_core::{Gravity, JointError, Joints, LoadError, Loads, Model, Robot, Solver, Status};
+use ctr_core::{Gravity, JointError, LoadError, Loads, Model, Robot, Solver, Status};
 use std::fmt;
 
 /// A robot, its base model and its effects: everything that predicts a recording.
@@ -132,18 +133,13 @@ fn predict_n<const N: usize>(
         .map(|g| Gravity::new(g.direction_w, g.g_m_s2));
     for &run in runs {
         let range = rec.runs[run].rows.clone();
-        let actual = if shifts {
-            actual_joints(&rec.run_times(run), &rec.run_joints(run), &time)
-        } else {
-            rec.run_joints(run)
-        };
+        // shifted joints per row of the run; without shifts the recorded ones as they are
+        let shifted =
+            shifts.then(|| actual_joints(&rec.run_times(run), &rec.run_joints(run), &time));
         let mut solver = Solver::<f64, N>::default();
         for (k, row) in range.enumerate() {
-            let a = &actual[k];
-            let q = Joints::from_mm_deg(
-                core::array::from_fn(|i| a[2 * i]),
-                core::array::from_fn(|i| a[2 * i + 1]),
-            );
+            let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
+            let q = joints_of::<N>(a);
             let force = rec.rows[row].force_n;
             let sol = if gravity.is_some() || force.iter().any(|&f| f != 0.0) {
                 let loads = Loads {

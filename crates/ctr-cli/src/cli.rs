@@ -212,7 +212,7 @@ pub struct EmulateArgs {
     pub tubes: u8,
 
     /// Simulated seconds per second (motion runs this much faster than real time).
-    #[arg(long, value_name = "X", default_value_t = 1.0, value_parser = parse_time_scale)]
+    #[arg(long, value_name = "X", default_value_t = 1.0, value_parser = parse_positive)]
     pub time_scale: f64,
 
     /// A fault to inject: KIND[:ID][@GOALS][xCOUNT] (see below); repeatable.
@@ -235,13 +235,6 @@ pub struct FaultSpec {
     pub after_goals: usize,
     /// How many times in a row.
     pub count: usize,
-}
-
-fn parse_time_scale(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
-        _ => Err(format!("{s:?} is not a positive number")),
-    }
 }
 
 /// Parses `KIND[:ID][@GOALS][xCOUNT]` (see `ctr-cli hw emulate --help`).

@@ -109,8 +109,6 @@ impl Problem<'_> {
     /// The model with parameters `x`.
     pub fn model(&self, x: &[f64]) -> ModelSpec {
         let mut m = self.base.clone();
-        let n = self.n_tubes();
-        let _ = n;
         let mut at = 0;
         for &b in &self.blocks {
             let k = self.block_len(b);

@@ -439,14 +439,6 @@ fn figures(e: &[[f64; 3]], held: &[bool]) -> Figures {
     }
 }
 
-fn threads(opt: usize) -> usize {
-    if opt > 0 {
-        opt
-    } else {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    }
-}
-
 /// Median time step between a run's rows (s).
 fn sample_period(rec: &Recording) -> f64 {
     let mut dt: Vec<f64> = rec
@@ -733,7 +725,7 @@ pub fn diagnose(
     let (e0, baseline) = (&start.e0, start.baseline);
     let n = model.robot.n_tubes();
     let huber = start.huber_mm();
-    let threads = threads(opt.threads);
+    let threads = crate::batch::resolve_threads(opt.threads);
     let period = sample_period(rec);
     let n_obs = (3 * fit_rows.len()) as f64;
 
@@ -929,7 +921,6 @@ pub fn diagnose(
         current_fig = fig;
         current_cost = cost;
         current_e = e;
-        let _ = round;
     }
     let final_pred = predict(&current, rec, all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
@@ -1144,7 +1135,7 @@ pub fn calibrate(
         runs: start.all_runs.clone(),
         rows: start.fit_rows.clone(),
         huber_mm: start.huber_mm(),
-        threads: threads(opt.threads),
+        threads: crate::batch::resolve_threads(opt.threads),
         clearance_table: opt.clearance_table,
     };
     let period = sample_period(rec);
