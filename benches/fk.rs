@@ -26,7 +26,7 @@
 //! `ctr_core::jacobian`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use ctr_core::{Joints, Model, Robot, Solver};
+use ctr_core::{JointJacobian, Joints, Model, Request, Robot, Solver};
 use ctr_suite::*;
 use std::hint::black_box;
 use std::time::Duration;
@@ -74,7 +74,7 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
             }
             black_box(
                 solver
-                    .solve(&robot, &path[k], Model::Torsion)
+                    .solve(&robot, Request::new(path[k], Model::Torsion))
                     .unwrap()
                     .tip
                     .position,
@@ -84,24 +84,28 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
     let mut with_jacobian = Solver::default();
     let mut kj = 0;
     group.bench_function("torsion+jacobian/warm", |b| {
+        let mut jac = JointJacobian::nan();
         b.iter(|| {
             kj = (kj + 1) % path.len();
             if kj == 0 {
                 with_jacobian.reset();
             }
-            let (sol, jac) = with_jacobian
-                .solve_jacobian(&robot, &path[kj], Model::Torsion)
+            let sol = with_jacobian
+                .solve(
+                    &robot,
+                    Request::new(path[kj], Model::Torsion).joint_jacobian(&mut jac),
+                )
                 .unwrap();
             black_box((sol.tip.position, jac.feed[0]))
         })
     });
-    let cold = Solver::default();
+    let mut cold = Solver::default();
     let mut j = 0;
     group.bench_function("torsion/cold", |b| {
         b.iter(|| {
             j = (j + 1) % scattered.len();
             black_box(
-                cold.solve_cold(&robot, &scattered[j], Model::Torsion)
+                cold.solve(&robot, Request::new(scattered[j], Model::Torsion).cold())
                     .unwrap()
                     .tip
                     .position,
@@ -112,7 +116,7 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
         b.iter(|| {
             j = (j + 1) % scattered.len();
             black_box(
-                cold.solve_cold(&robot, &scattered[j], Model::Rigid)
+                cold.solve(&robot, Request::new(scattered[j], Model::Rigid).cold())
                     .unwrap()
                     .tip
                     .position,
@@ -129,7 +133,7 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
             k = (k + 1) % path.len();
             black_box(
                 loaded
-                    .solve_loaded(&robot, &path[k], &gravity)
+                    .solve(&robot, Request::new(path[k], Model::Torsion).loads(gravity))
                     .unwrap()
                     .tip
                     .position,

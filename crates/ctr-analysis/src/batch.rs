@@ -15,7 +15,7 @@
 use crate::ik::{Ik, IkResult, IkTarget};
 use crate::model::{FkModel, ModelError};
 use crate::robot::{AnyRobot, FkResult};
-use ctr_core::{JointError, LoadError, Model};
+use ctr_core::{JointError, Model, SolveError};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -127,7 +127,7 @@ pub fn batch_fk(
 /// times (non-decreasing; the caller checks), without them the row index stands for
 /// time (latency is then refused). The actual joints of the run are found first, then
 /// the rows are solved in the same fixed chunks as [`batch_fk`]. The error of a row is
-/// `LoadError::Joint` when its (actual) joints are out of the robot's ranges.
+/// `SolveError::Joint` when its (actual) joints are out of the robot's ranges.
 ///
 /// # Panics
 /// If `joints.len()` is not a multiple of `2 * n_tubes`, or `t_s` does not have one
@@ -150,7 +150,7 @@ pub fn batch_fk_model(
     t_s: Option<&[f64]>,
     options: &BatchOptions,
     progress: &dyn Progress,
-) -> Result<Vec<Result<FkResult, LoadError>>, ModelError> {
+) -> Result<Vec<Result<FkResult, SolveError>>, ModelError> {
     let width = 2 * model.robot().n_tubes();
     assert!(
         joints.len().is_multiple_of(width),

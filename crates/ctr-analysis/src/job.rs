@@ -18,7 +18,7 @@ use crate::formats::{
 };
 use crate::ik::{Ik, IkOptions, IkStatus};
 use crate::model::{FkModel, ModelError};
-use ctr_core::{LoadError, Model, Status};
+use ctr_core::{Model, SolveError, Status};
 use std::io::{Read, Write};
 use std::path::PathBuf;
 
@@ -152,7 +152,7 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
         text: Vec<u8>,
         written: usize,
         failures: Vec<RowFailure>,
-        row_error: Option<(usize, LoadError)>,
+        row_error: Option<(usize, SolveError)>,
     }
     let mut failures = Vec::new();
     let mut written = 0;

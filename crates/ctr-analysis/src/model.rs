@@ -25,7 +25,7 @@ use crate::robot::joints_of;
 use crate::robot::{AnyRobot, FkResult, FkSolver};
 use crate::timeline::actual_joints;
 use ctr_core::effects::Effects as CoreEffects;
-use ctr_core::{Gravity, LoadError, Loads, Model, Robot, Solver};
+use ctr_core::{Gravity, Loads, Model, Request, Robot, SolveError, Solver};
 use std::fmt;
 use std::ops::Range;
 
@@ -217,9 +217,9 @@ impl FkModel {
     /// What a row's failed solve means (the location is the caller's): joints out of
     /// the robot's ranges (when the effects move the joints, said so), or a load the
     /// core refused.
-    pub fn row_error(&self, e: LoadError) -> ErrorKind {
+    pub fn row_error(&self, e: SolveError) -> ErrorKind {
         match e {
-            LoadError::Joint(e) if self.shifts_joints() => {
+            SolveError::Joint(e) if self.shifts_joints() => {
                 let moved: Vec<&str> = [
                     ("joint_offset", self.effects.joint_offset.is_some()),
                     ("latency", self.effects.latency.is_some()),
@@ -236,7 +236,7 @@ impl FkModel {
                     ),
                 }
             }
-            LoadError::Joint(e) => ErrorKind::Joint(e),
+            SolveError::Joint(e) => ErrorKind::Joint(e),
             other => ErrorKind::Effect {
                 message: other.to_string(),
             },
@@ -291,21 +291,16 @@ struct Effective<const N: usize> {
 }
 
 impl<const N: usize> Effective<N> {
-    fn solve(&mut self, a: &[f64]) -> Result<FkResult, LoadError> {
+    fn solve(&mut self, a: &[f64]) -> Result<FkResult, SolveError> {
         let q = joints_of::<N>(a);
-        let sol = if self.gravity.is_some() {
-            let loads = Loads {
+        let mut request = Request::new(q, self.model).effects(&self.core);
+        if self.gravity.is_some() {
+            request = request.loads(Loads {
                 gravity: self.gravity,
                 ..Default::default()
-            };
-            let mut sol = self.solver.solve_loaded(&self.robot, &q, &loads)?;
-            sol.tip = self.core.measured(&sol.tip);
-            sol
-        } else {
-            self.solver
-                .solve_with(&self.robot, &q, self.model, &self.core)
-                .map_err(LoadError::Joint)?
-        };
+            });
+        }
+        let sol = self.solver.solve(&self.robot, request)?;
         Ok(FkResult::from_solution(&sol))
     }
 }
@@ -349,14 +344,14 @@ impl ModelSolver<'_> {
     /// Solves the commanded joints of one row (file order and units): the joint offsets
     /// are added, then the mechanics and the measurement (module docs). Only for models
     /// without time effects (else see [`FkModel::actual_joints`] and
-    /// [`fk_actual`](Self::fk_actual)). `LoadError::Joint` when the (actual) joints are
+    /// [`fk_actual`](Self::fk_actual)). `SolveError::Joint` when the (actual) joints are
     /// out of the robot's ranges.
     ///
     /// # Panics
     /// If `joints.len() != 2 * n_tubes`.
-    pub fn fk(&mut self, joints: &[f64]) -> Result<FkResult, LoadError> {
+    pub fn fk(&mut self, joints: &[f64]) -> Result<FkResult, SolveError> {
         match &mut self.inner {
-            Inner::Plain(s, model) => s.fk(joints, *model).map_err(LoadError::Joint),
+            Inner::Plain(s, model) => s.fk(joints, *model).map_err(SolveError::Joint),
             Inner::Effects {
                 offset,
                 shift,
@@ -383,16 +378,16 @@ impl ModelSolver<'_> {
     ///
     /// # Panics
     /// If `actual.len() != 2 * n_tubes`.
-    pub fn fk_actual(&mut self, actual: &[f64]) -> Result<FkResult, LoadError> {
+    pub fn fk_actual(&mut self, actual: &[f64]) -> Result<FkResult, SolveError> {
         match &mut self.inner {
-            Inner::Plain(s, model) => s.fk(actual, *model).map_err(LoadError::Joint),
+            Inner::Plain(s, model) => s.fk(actual, *model).map_err(SolveError::Joint),
             Inner::Effects { solver, .. } => solver.solve(actual),
         }
     }
 }
 
 impl AnyEffective {
-    fn solve(&mut self, a: &[f64]) -> Result<FkResult, LoadError> {
+    fn solve(&mut self, a: &[f64]) -> Result<FkResult, SolveError> {
         match self {
             AnyEffective::One(e) => e.solve(a),
             AnyEffective::Two(e) => e.solve(a),

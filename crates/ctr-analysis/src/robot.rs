@@ -10,7 +10,8 @@
 //! same rotation always prints the same four numbers.
 
 use ctr_core::{
-    JointError, Joints, Model, Robot, RobotError, Solution, Solver, Status, TubeParams, MAX_TUBES,
+    JointError, Joints, Model, Request, Robot, RobotError, Solution, SolveError, Solver, Status,
+    TubeParams, MAX_TUBES,
 };
 use nalgebra::UnitQuaternion;
 
@@ -258,8 +259,12 @@ impl FkSolver<'_> {
             joints: &[f64],
             model: Model,
         ) -> Result<FkResult, JointError> {
-            s.solve(r, &joints_of::<N>(joints), model)
-                .map(|sol| FkResult::from_solution(&sol))
+            match s.solve(r, Request::new(joints_of::<N>(joints), model)) {
+                Ok(sol) => Ok(FkResult::from_solution(&sol)),
+                Err(SolveError::Joint(e)) => Err(e),
+                // an unloaded request of the core's models has no other error
+                Err(e) => unreachable!("{e}"),
+            }
         }
         match (self.robot, &mut self.solver) {
             (AnyRobot::One(r), AnySolver::One(s)) => solve(s, r, joints, model),

@@ -11,7 +11,7 @@ use crate::formats::{Effects, Recording, RobotSpec};
 use crate::robot::joints_of;
 use crate::robot::AnyRobot;
 use crate::timeline::actual_joints;
-use ctr_core::{Gravity, JointError, LoadError, Loads, Model, Robot, Solver, Status};
+use ctr_core::{Gravity, JointError, Loads, Model, Request, Robot, SolveError, Solver, Status};
 use std::fmt;
 
 /// A robot, its base model and its effects: everything that predicts a recording.
@@ -63,7 +63,7 @@ pub enum SimError {
         /// row index in the recording
         row: usize,
         /// what the core said
-        error: LoadError,
+        error: SolveError,
     },
 }
 
@@ -141,22 +141,18 @@ fn predict_n<const N: usize>(
             let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
             let q = joints_of::<N>(a);
             let force = rec.rows[row].force_n;
-            let sol = if gravity.is_some() || force.iter().any(|&f| f != 0.0) {
-                let loads = Loads {
+            let mut request = Request::new(q, model.model).effects(&core);
+            if gravity.is_some() || force.iter().any(|&f| f != 0.0) {
+                request = request.loads(Loads {
                     gravity,
                     tip_force_n: force,
                     ..Default::default()
-                };
-                let mut sol = solver
-                    .solve_loaded(robot, &q, &loads)
-                    .map_err(|error| SimError::Load { row, error })?;
-                sol.tip = core.measured(&sol.tip);
-                sol
-            } else {
-                solver
-                    .solve_with(robot, &q, model.model, &core)
-                    .map_err(|error| SimError::Joint { row, error })?
-            };
+                });
+            }
+            let sol = solver.solve(robot, request).map_err(|error| match error {
+                SolveError::Joint(error) => SimError::Joint { row, error },
+                error => SimError::Load { row, error },
+            })?;
             if sol.status != Status::Converged {
                 out.failed += 1;
             }

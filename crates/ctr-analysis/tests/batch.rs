@@ -4,7 +4,7 @@ use ctr_analysis::batch::{batch_fk, BatchOptions, Progress, WARM_CHUNK_ROWS};
 use ctr_analysis::formats::RobotSpec;
 use ctr_analysis::job::{run_fk, FkJob, Input, OnError, Output};
 use ctr_analysis::{canonical_quaternion, AnyRobot, ErrorKind, FkResult};
-use ctr_core::{Joints, Model, Robot, Solver, Status};
+use ctr_core::{Joints, Model, Request, Robot, Solver, Status};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -67,7 +67,7 @@ fn core_rows<const N: usize>(
                 core::array::from_fn(|k| q[2 * k]),
                 core::array::from_fn(|k| q[2 * k + 1]),
             );
-            let sol = solver.solve(robot, &q, model).unwrap();
+            let sol = solver.solve(robot, Request::new(q, model)).unwrap();
             let p = sol.tip.position;
             FkResult {
                 position: [p.x, p.y, p.z],

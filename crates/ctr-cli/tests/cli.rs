@@ -2,7 +2,7 @@
 //! the core, carry-through, thread-count independence, atomic output, exit codes.
 
 use ctr_analysis::batch::WARM_CHUNK_ROWS;
-use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+use ctr_core::{Joints, Model, Request, Robot, Solver, TubeParams};
 
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
@@ -145,7 +145,7 @@ fn core_tips(robot: &str, joints: &[[f64; 4]], model: Model) -> Vec<[f64; 7]> {
                 core::array::from_fn(|k| q[2 * k]),
                 core::array::from_fn(|k| q[2 * k + 1]),
             );
-            let sol = solver.solve(&robot, &q, model).unwrap();
+            let sol = solver.solve(&robot, Request::new(q, model)).unwrap();
             let quat = sol.tip.orientation();
             let mut w = [quat.w, quat.i, quat.j, quat.k];
             if w[0] < 0.0 {
@@ -264,7 +264,9 @@ fn three_tube_robot_matches_the_core_too() {
             solver = Solver::default();
         }
         let q = Joints::from_mm_deg([q[0], q[2], q[4]], [q[1], q[3], q[5]]);
-        let sol = solver.solve(&robot, &q, Model::Torsion).unwrap();
+        let sol = solver
+            .solve(&robot, Request::new(q, Model::Torsion))
+            .unwrap();
         let p = sol.tip.position;
         assert_eq!([g[0], g[1], g[2]], [p.x, p.y, p.z], "row {i}");
         let w = sol.tip.orientation();

@@ -5,7 +5,7 @@
 //! balance. The physics follows Liu et al., "Modeling of and Experimenting with
 //! Concentric Tube Robots: Considering Clearance, Friction and Torsion", Sensors 23
 //! (2023) 3709, generalised to `N` tubes (1 to [`MAX_TUBES`]) with the transmissions
-//! behind the guide twisting too; the equations are in [`twist`].
+//! behind the guide twisting too; the equations are in [`integrate::twist`].
 //!
 //! Conventions (`shared/spec/formats.md`): tube 1 (index 0) is the outermost; `s_i` is
 //! tube i's exposed length beyond the guide exit, `theta_i` its actuator angle about +z;
@@ -13,47 +13,51 @@
 //! zero rotations and a positive radius. Lengths are mm, angles rad inside the core.
 //!
 //! ```
-//! use ctr_core::{Joints, Model, Robot, Solver, Status, TubeParams};
+//! use ctr_core::{Joints, Model, Request, Robot, Solver, Status, TubeParams};
 //! let outer = TubeParams { curvature_radius_mm: Some(300.0), ..TubeParams::<f64>::new(1.9, 1.6, 160.0, 80.0, 58000.0, 0.33) };
 //! let middle = TubeParams { curvature_radius_mm: Some(180.0), ..TubeParams::<f64>::new(1.4, 1.1, 220.0, 70.0, 58000.0, 0.33) };
 //! let inner = TubeParams { curvature_radius_mm: Some(80.0), ..TubeParams::<f64>::new(0.9, 0.6, 280.0, 50.0, 58000.0, 0.33) };
 //! let robot = Robot::new([outer, middle, inner])?;
 //! let mut solver = Solver::default();
-//! let sol = solver.solve(&robot, &Joints::from_mm_deg([30.0, 60.0, 90.0], [0.0, 45.0, -30.0]), Model::Torsion)?;
+//! let q = Joints::from_mm_deg([30.0, 60.0, 90.0], [0.0, 45.0, -30.0]);
+//! let sol = solver.solve(&robot, Request::new(q, Model::Torsion))?;
 //! assert_eq!(sol.status, Status::Converged);
 //! let q = sol.tip.orientation();
 //! assert!((q.norm() - 1.0).abs() < 1e-12);
 //! # Ok::<(), Box<dyn core::error::Error>>(())
 //! ```
+//!
+//! # Layout
+//!
+//! - [`math`]: dual numbers, the SE(3) exponential, small linear algebra;
+//! - [`model`]: the robot, joints, sections, effects, friction memory, loads;
+//! - [`integrate`]: one RK4 over the twist, variation and loaded states, and the pass
+//!   along the backbone;
+//! - [`solve`]: the one [`Request`] a [`Solver`] answers, Newton's loop, the shooting,
+//!   the loaded model, the Jacobians.
 #![no_std]
 #![forbid(unsafe_code)]
 
 /// The linear algebra crate the core is built on (its types appear in the API).
 pub use nalgebra;
 
-pub mod dual;
-pub mod effects;
-pub mod friction;
-pub mod jacobian;
-pub mod joints;
-pub mod loads;
+pub mod integrate;
+pub mod math;
+pub mod model;
 mod real;
-pub mod robot;
-pub mod se3;
-mod sections;
-pub mod solver;
-mod tangent;
-pub mod twist;
+pub mod solve;
 
-pub use jacobian::{JointJacobian, ParameterJacobian};
-pub use joints::{JointError, JointKind, Joints};
-pub use loads::{Gravity, LoadError, Loads};
+pub use math::se3::Frame;
+pub use model::effects::{self, ClearanceProfile, Effects, Registration};
+pub use model::friction::{self, BoundaryMoment, PlayFriction};
+pub use model::joints::{JointError, JointKind, Joints};
+pub use model::loads::{Gravity, Loads, STANDARD_GRAVITY_M_S2};
+pub use model::robot::{Field, Robot, RobotError, Tube, TubeParams};
 pub use real::Real;
-pub use robot::{Field, Robot, RobotError, Tube, TubeParams};
-pub use se3::Frame;
-pub use solver::{
-    Model, Solution, Solver, SolverConfig, Status, DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_STEP_MM,
-    DEFAULT_STEP_FRACTION,
+pub use solve::jacobian::{JointJacobian, ParameterJacobian};
+pub use solve::{
+    Derivative, Model, Request, Solution, SolveError, Solver, SolverConfig, Status, Unsupported,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_STEP_MM, DEFAULT_STEP_FRACTION,
 };
 
 /// Most tubes a robot may have.

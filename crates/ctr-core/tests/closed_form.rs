@@ -1,5 +1,5 @@
 //! Closed forms and symmetries the solver must reproduce.
-use ctr_core::{Joints, Model, Robot, Solver, SolverConfig, Status, TubeParams};
+use ctr_core::{Joints, Model, Request, Robot, Solver, SolverConfig, Status, TubeParams};
 use ctr_suite::*;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use std::f64::consts::PI;
@@ -26,7 +26,10 @@ fn one_tube_is_an_exact_arc() {
     for model in [Model::Rigid, Model::Torsion] {
         for (s, theta) in [(30.0, 0.0), (90.0, 1.0), (60.0, -2.5)] {
             let sol = Solver::default()
-                .solve_cold(&robot, &Joints::new([s], [theta]), model)
+                .solve(
+                    &robot,
+                    Request::new(Joints::new([s], [theta]), model).cold(),
+                )
                 .unwrap();
             let (p, r) = arc(0.01, s, theta);
             assert!((sol.tip.position - p).norm() < 1e-12, "{model:?} s={s}");
@@ -36,7 +39,10 @@ fn one_tube_is_an_exact_arc() {
     }
     // a straight part behind the curve: a line of s - curved, then the arc
     let sol = Solver::default()
-        .solve_cold(&robot, &Joints::new([150.0], [0.0]), Model::Torsion)
+        .solve(
+            &robot,
+            Request::new(Joints::new([150.0], [0.0]), Model::Torsion).cold(),
+        )
         .unwrap();
     let (p, _) = arc(0.01, 90.0, 0.0);
     assert!((sol.tip.position - (p + Vector3::new(0.0, 0.0, 60.0))).norm() < 1e-12);
@@ -52,7 +58,10 @@ fn two_rigid_tubes_bend_with_the_stiffness_weighted_curvature() {
     for (t1, t2) in [(0.0, 0.0), (0.3, 2.0), (-1.0, 3.0)] {
         let s = 70.0; // both tips together, both curved over all of it
         let sol = Solver::default()
-            .solve_cold(&robot, &Joints::new([s, s], [t1, t2]), Model::Rigid)
+            .solve(
+                &robot,
+                Request::new(Joints::new([s, s], [t1, t2]), Model::Rigid).cold(),
+            )
             .unwrap();
         let u = (Vector3::new(-t1.sin(), t1.cos(), 0.0) * (k1 / 200.0)
             + Vector3::new(-t2.sin(), t2.cos(), 0.0) * (k2 / 100.0))
@@ -84,10 +93,10 @@ fn stiff_torsion_tends_to_rigid() {
         });
         let robot = Robot::new(p).unwrap();
         let tors = Solver::default()
-            .solve_cold(&robot, &q, Model::Torsion)
+            .solve(&robot, Request::new(q, Model::Torsion).cold())
             .unwrap();
         let rig = Solver::default()
-            .solve_cold(&robot, &q, Model::Rigid)
+            .solve(&robot, Request::new(q, Model::Rigid).cold())
             .unwrap();
         assert_eq!(tors.status, Status::Converged);
         gaps.push((tors.tip.position - rig.tip.position).norm());
@@ -107,14 +116,18 @@ fn common_rotation_rotates_the_tip() {
     let robot = robot::<3>("nitinol3");
     let q = Joints::from_mm_deg([35.0, 60.0, 95.0], [20.0, -70.0, 160.0]);
     for model in [Model::Rigid, Model::Torsion] {
-        let base = Solver::default().solve_cold(&robot, &q, model).unwrap();
+        let base = Solver::default()
+            .solve(&robot, Request::new(q, model).cold())
+            .unwrap();
         for alpha in [0.7, -2.0, PI] {
             let mut qr = q;
             for t in qr.theta_rad.iter_mut() {
                 *t += alpha;
             }
             let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), alpha);
-            let sol = Solver::default().solve_cold(&robot, &qr, model).unwrap();
+            let sol = Solver::default()
+                .solve(&robot, Request::new(qr, model).cold())
+                .unwrap();
             assert!((sol.tip.position - rot * base.tip.position).norm() < 1e-10);
             assert!((sol.tip.rotation - rot.matrix() * base.tip.rotation).norm() < 1e-12);
         }
@@ -143,15 +156,14 @@ fn two_tubes_agree_with_the_seed_beta_formulation() {
     let c = (1.0 + nu) * k1 * k2;
     for beta0_deg in [30.0_f64, 90.0, 150.0, 175.0, -120.0] {
         let beta0 = beta0_deg.to_radians();
-        let fine = Solver::new(SolverConfig {
+        let mut fine = Solver::new(SolverConfig {
             step_fraction: 0.005,
             ..Default::default()
         });
         let sol = fine
-            .solve_cold(
+            .solve(
                 &robot,
-                &Joints::new([s1, s2], [0.2, 0.2 + beta0]),
-                Model::Torsion,
+                Request::new(Joints::new([s1, s2], [0.2, 0.2 + beta0]), Model::Torsion).cold(),
             )
             .unwrap();
         assert_eq!(sol.status, Status::Converged);
@@ -209,7 +221,9 @@ fn f32_reproduces_the_reference_within_five_hundredths_of_a_mm() {
                 row.q.s_mm.map(|v| v as f32),
                 row.q.theta_rad.map(|v| v as f32),
             );
-            let sol = solver.solve(&robot, &q, Model::Torsion).unwrap();
+            let sol = solver
+                .solve(&robot, Request::new(q, Model::Torsion))
+                .unwrap();
             assert_ne!(sol.status, Status::Diverged);
             let p = sol.tip.position.map(|v| v as f64);
             worst = worst.max((p - Vector3::from(row.p)).norm());
@@ -234,7 +248,7 @@ fn four_tubes_solve_and_reduce_to_three_when_one_is_straight_and_short() {
     let robot4 = Robot::new([p[0], p[1], p[2], fourth]).unwrap();
     let q = Joints::from_mm_deg([30.0, 60.0, 90.0, 90.0], [0.0, 90.0, -45.0, 10.0]);
     let sol = Solver::default()
-        .solve_cold(&robot4, &q, Model::Torsion)
+        .solve(&robot4, Request::new(q, Model::Torsion).cold())
         .unwrap();
     assert_eq!(sol.status, Status::Converged);
     // torque balance at the exit: sum of G J u(0) vanishes

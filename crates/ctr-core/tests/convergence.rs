@@ -1,7 +1,7 @@
 //! Step-size study: the torsion solve converges at 4th order as the RK4 step shrinks, and
 //! the default step meets the 1e-3 mm contract against the reference tables.
 
-use ctr_core::{Joints, Model, Robot, Solver, SolverConfig, DEFAULT_STEP_FRACTION};
+use ctr_core::{Joints, Model, Request, Robot, Solver, SolverConfig, DEFAULT_STEP_FRACTION};
 use ctr_suite::*;
 
 /// Tip with RK4 steps of `f` times each section's length scale (capped at 1000 mm).
@@ -10,13 +10,13 @@ fn tip<const N: usize>(
     q: &Joints<f64, N>,
     f: f64,
 ) -> nalgebra::Vector3<f64> {
-    let solver = Solver::new(SolverConfig {
+    let mut solver = Solver::new(SolverConfig {
         max_step_mm: 1000.0,
         step_fraction: f,
         ..Default::default()
     });
     solver
-        .solve_cold(robot, q, Model::Torsion)
+        .solve(robot, Request::new(*q, Model::Torsion).cold())
         .unwrap()
         .tip
         .position
@@ -36,13 +36,13 @@ fn tip_fixed<const N: usize>(
     q: &Joints<f64, N>,
     h: f64,
 ) -> nalgebra::Vector3<f64> {
-    let solver = Solver::new(SolverConfig {
+    let mut solver = Solver::new(SolverConfig {
         max_step_mm: h,
         step_fraction: 1e9,
         ..Default::default()
     });
     solver
-        .solve_cold(robot, q, Model::Torsion)
+        .solve(robot, Request::new(*q, Model::Torsion).cold())
         .unwrap()
         .tip
         .position

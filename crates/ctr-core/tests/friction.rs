@@ -3,7 +3,7 @@
 use ctr_core::effects::{ClearanceProfile, Effects, Registration, CLEARANCE_TABLE_CAPACITY};
 use ctr_core::friction::{BoundaryMoment, PlayFriction};
 use ctr_core::nalgebra::Vector3;
-use ctr_core::{Joints, Model, Robot, Solver, Status};
+use ctr_core::{Joints, Model, Request, Robot, Solver, Status};
 use ctr_suite::*;
 
 /// Feeds of the hysteresis runs (inside nitinol2's stable ranges), mm.
@@ -15,10 +15,15 @@ const SWEEP_STEP_DEG: f64 = 5.0;
 fn zero_boundary_friction_is_the_frictionless_solution() {
     let robot: Robot<f64, 3> = robot::<3>("nitinol3");
     let q = Joints::from_mm_deg([30.0, 60.0, 95.0], [10.0, 100.0, -60.0]);
-    let free = Solver::default().solve(&robot, &q, Model::Torsion).unwrap();
+    let free = Solver::default()
+        .solve(&robot, Request::new(q, Model::Torsion))
+        .unwrap();
     for direction in [[1.0, -1.0, 0.0], [0.0, 0.0, 0.0]] {
         let none = Solver::default()
-            .solve_boundary_moment(&robot, &q, &[0.0; 3], &direction)
+            .solve(
+                &robot,
+                Request::new(q, Model::Torsion).friction([0.0; 3].map(|mu| mu * direction[0])),
+            )
             .unwrap();
         assert_eq!(none, free);
     }
@@ -26,7 +31,10 @@ fn zero_boundary_friction_is_the_frictionless_solution() {
     // the tip by a vanishing amount, and a small one by an amount proportional to it
     let moved = |mu: f64| {
         let sol = Solver::default()
-            .solve_boundary_moment(&robot, &q, &[mu, mu, 0.0], &[1.0, -1.0, 0.0])
+            .solve(
+                &robot,
+                Request::new(q, Model::Torsion).friction([mu, -mu, 0.0]),
+            )
             .unwrap();
         assert_eq!(sol.status, Status::Converged);
         (sol.tip.position - free.tip.position).norm()
@@ -88,7 +96,7 @@ fn boundary_friction_hysteresis_grows_with_mu() {
 /// tip loop's width, mm.
 fn feed_loop_width(robot: &Robot<f64, 2>, w: f64) -> f64 {
     let mut play = PlayFriction::new([0.0; 2], [0.0, w]);
-    let solver = Solver::default();
+    let mut solver = Solver::default();
     let cmd = |k: usize| Joints::from_mm_deg([40.0, 60.0 + k as f64], [0.0, 90.0]);
     play.reset(&cmd(0));
     let mut forward = Vec::new();
@@ -100,7 +108,7 @@ fn feed_loop_width(robot: &Robot<f64, 2>, w: f64) -> f64 {
         }
         forward.push(
             solver
-                .solve_cold(robot, &actual, Model::Torsion)
+                .solve(robot, Request::new(actual, Model::Torsion).cold())
                 .unwrap()
                 .tip
                 .position,
@@ -114,7 +122,7 @@ fn feed_loop_width(robot: &Robot<f64, 2>, w: f64) -> f64 {
             assert!((actual.s_mm[1] - (cmd(k).s_mm[1] + w)).abs() < 1e-12);
         }
         let p = solver
-            .solve_cold(robot, &actual, Model::Torsion)
+            .solve(robot, Request::new(actual, Model::Torsion).cold())
             .unwrap()
             .tip
             .position;
@@ -146,9 +154,11 @@ fn a_clearance_table_of_zeros_changes_nothing() {
     };
     for row in reference::<3>("nitinol3", "torsion").iter().step_by(10) {
         for model in [Model::Rigid, Model::Torsion] {
-            let plain = Solver::default().solve(&robot, &row.q, model).unwrap();
+            let plain = Solver::default()
+                .solve(&robot, Request::new(row.q, model))
+                .unwrap();
             let with = Solver::default()
-                .solve_with(&robot, &row.q, model, &effects)
+                .solve(&robot, Request::new(row.q, model).effects(&effects))
                 .unwrap();
             assert_eq!(plain.tip, with.tip);
         }
@@ -168,10 +178,13 @@ fn registration_by_identity_changes_nothing() {
         };
         for row in reference::<2>("liu2023", "torsion").iter().step_by(10) {
             let plain = Solver::default()
-                .solve(&robot, &row.q, Model::Torsion)
+                .solve(&robot, Request::new(row.q, Model::Torsion))
                 .unwrap();
             let with = Solver::default()
-                .solve_with(&robot, &row.q, Model::Torsion, &effects)
+                .solve(
+                    &robot,
+                    Request::new(row.q, Model::Torsion).effects(&effects),
+                )
                 .unwrap();
             assert_eq!(plain.tip, with.tip);
         }
@@ -187,9 +200,11 @@ fn registration_by_identity_changes_nothing() {
         ..Default::default()
     };
     let q = Joints::from_mm_deg([40.0, 90.0], [0.0, 45.0]);
-    let plain = Solver::default().solve(&robot, &q, Model::Torsion).unwrap();
+    let plain = Solver::default()
+        .solve(&robot, Request::new(q, Model::Torsion))
+        .unwrap();
     let with = Solver::default()
-        .solve_with(&robot, &q, Model::Torsion, &effects)
+        .solve(&robot, Request::new(q, Model::Torsion).effects(&effects))
         .unwrap();
     assert!((with.tip.position - plain.tip.position - t).norm() < 1e-12);
 }

@@ -2,7 +2,7 @@
 //! solver itself, on the shared robots at random configurations inside the manifest's
 //! ranges, and the compliance against Euler-Bernoulli.
 use ctr_core::nalgebra::{Matrix3, Vector3, Vector6};
-use ctr_core::{Joints, Model, Robot, Solver, SolverConfig, Status, TubeParams};
+use ctr_core::{Joints, Model, Request, Robot, Solver, SolverConfig, Status, TubeParams};
 use ctr_suite::*;
 
 /// Largest accepted relative error of a Jacobian column (norm of the difference over the
@@ -101,8 +101,21 @@ fn joint_columns<const N: usize>(
         let q = random_joints::<N>(name, &mut rng);
         let mut solver = tight_solver::<N>();
         let (sol, jac) = match effects {
-            None => solver.solve_jacobian(&robot, &q, model),
-            Some(e) => solver.solve_jacobian_with(&robot, &q, model, e),
+            None => {
+                let mut d = ctr_core::JointJacobian::nan();
+                solver
+                    .solve(&robot, Request::new(q, model).joint_jacobian(&mut d))
+                    .map(|sol| (sol, d))
+            }
+            Some(e) => {
+                let mut d = ctr_core::JointJacobian::nan();
+                solver
+                    .solve(
+                        &robot,
+                        Request::new(q, model).effects(e).joint_jacobian(&mut d),
+                    )
+                    .map(|sol| (sol, d))
+            }
         }
         .unwrap();
         assert_eq!(sol.status, Status::Converged, "{name} {q:?}");
@@ -116,8 +129,8 @@ fn joint_columns<const N: usize>(
                 }
                 let mut cold = tight_solver::<N>();
                 let s = match effects {
-                    None => cold.solve(&robot, &p, model),
-                    Some(e) => cold.solve_with(&robot, &p, model, e),
+                    None => cold.solve(&robot, Request::new(p, model)),
+                    Some(e) => cold.solve(&robot, Request::new(p, model).effects(e)),
                 }
                 .unwrap();
                 assert_eq!(s.status, Status::Converged);
@@ -181,7 +194,13 @@ fn parameter_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64
     for _ in 0..CONFIGS / 2 {
         let q = random_joints::<N>(name, &mut rng);
         let mut solver = tight_solver::<N>();
-        let (sol, jac) = solver.solve_parameter_jacobian(&robot, &q, model).unwrap();
+        let (sol, jac) = {
+            let mut d = ctr_core::ParameterJacobian::nan();
+            solver
+                .solve(&robot, Request::new(q, model).parameter_jacobian(&mut d))
+                .map(|sol| (sol, d))
+        }
+        .unwrap();
         assert_eq!(sol.status, Status::Converged);
         for which in 0..3 {
             for tube in 0..N {
@@ -190,9 +209,9 @@ fn parameter_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64
                     jac.torsional_stiffness,
                     jac.curvature,
                 ][which][tube];
-                let tip = |f: f64| {
+                let mut tip = |f: f64| {
                     let r = scaled_robot::<N>(name, which, tube, f);
-                    let s = solver.solve_cold(&r, &q, model).unwrap();
+                    let s = solver.solve(&r, Request::new(q, model).cold()).unwrap();
                     assert_eq!(s.status, Status::Converged);
                     s.tip
                 };
@@ -241,9 +260,18 @@ fn compliance_columns<const N: usize>(name: &str, seed: u64) -> f64 {
     let (force_step, moment_step) = (1e-6, 1e-4);
     for _ in 0..2 {
         let q = random_joints::<N>(name, &mut rng);
-        let (sol, c) = tight_solver::<N>()
-            .solve_compliance(&robot, &q, &ctr_core::Loads::default())
-            .unwrap();
+        let (sol, c) = {
+            let mut d = ctr_core::nalgebra::Matrix6::from_element(f64::NAN);
+            tight_solver::<N>()
+                .solve(
+                    &robot,
+                    Request::new(q, Model::Torsion)
+                        .loads(ctr_core::Loads::default())
+                        .compliance(&mut d),
+                )
+                .map(|sol| (sol, d))
+        }
+        .unwrap();
         assert_eq!(sol.status, Status::Converged);
         for col in 0..6 {
             let h = if col < 3 { force_step } else { moment_step };
@@ -255,7 +283,7 @@ fn compliance_columns<const N: usize>(name: &str, seed: u64) -> f64 {
                     loads.tip_moment_nmm[col - 3] = d;
                 }
                 let s = tight_solver::<N>()
-                    .solve_loaded(&robot, &q, &loads)
+                    .solve(&robot, Request::new(q, Model::Torsion).loads(loads))
                     .unwrap();
                 assert_eq!(s.status, Status::Converged, "{name} {loads:?}");
                 s.tip
@@ -292,13 +320,18 @@ fn straight_cantilever_compliance_is_euler_bernoulli() {
     let ei = robot.tubes()[0].bending_stiffness_nmm2();
     let gj = robot.tubes()[0].torsional_stiffness_nmm2();
     for (l, theta) in [(100.0, 0.0), (170.0, 0.7)] {
-        let (_, c) = Solver::default()
-            .solve_compliance(
-                &robot,
-                &Joints::new([l], [theta]),
-                &ctr_core::Loads::default(),
-            )
-            .unwrap();
+        let (_, c) = {
+            let mut d = ctr_core::nalgebra::Matrix6::from_element(f64::NAN);
+            Solver::default()
+                .solve(
+                    &robot,
+                    Request::new(Joints::new([l], [theta]), Model::Torsion)
+                        .loads(ctr_core::Loads::default())
+                        .compliance(&mut d),
+                )
+                .map(|sol| (sol, d))
+        }
+        .unwrap();
         let mut expected = ctr_core::nalgebra::Matrix6::<f64>::zeros();
         let (bend, couple, rot) = (l * l * l / (3.0 * ei), l * l / (2.0 * ei), l / ei);
         // x displaces under F_x and M_y, y under F_y and -M_x
@@ -330,12 +363,26 @@ fn f32_joint_jacobian_matches_f64() {
     for _ in 0..CONFIGS {
         let q = random_joints::<3>("nitinol3", &mut rng);
         let q32 = Joints::new(q.s_mm.map(|v| v as f32), q.theta_rad.map(|v| v as f32));
-        let (sol, jac) = Solver::default()
-            .solve_jacobian(&robot, &q, Model::Torsion)
-            .unwrap();
-        let (sol32, jac32) = Solver::<f32, 3>::default()
-            .solve_jacobian(&robot32, &q32, Model::Torsion)
-            .unwrap();
+        let (sol, jac) = {
+            let mut d = ctr_core::JointJacobian::nan();
+            Solver::default()
+                .solve(
+                    &robot,
+                    Request::new(q, Model::Torsion).joint_jacobian(&mut d),
+                )
+                .map(|sol| (sol, d))
+        }
+        .unwrap();
+        let (sol32, jac32) = {
+            let mut d = ctr_core::JointJacobian::nan();
+            Solver::<f32, 3>::default()
+                .solve(
+                    &robot32,
+                    Request::new(q32, Model::Torsion).joint_jacobian(&mut d),
+                )
+                .map(|sol| (sol, d))
+        }
+        .unwrap();
         assert_eq!(sol.status, Status::Converged);
         assert_eq!(sol32.status, Status::Converged);
         for col in 0..6 {
@@ -375,22 +422,72 @@ fn joint_jacobian_through_offsets_sensor_and_registration_matches_finite_differe
     joint_columns::<3>("nitinol3", Model::Torsion, 0x0FED_CBA9_8765_4321, Some(&e3));
 }
 
+/// The clearance kinks are differentiated too (through the relative angle they
+/// depend on): the Jacobian of the measured tip with a cosine profile or a table, on
+/// top of offsets, sensor offset and registration, matches central differences.
 #[test]
-fn joint_jacobian_with_clearance_is_nan_and_the_tip_is_solve_withs() {
+fn joint_jacobian_through_clearance_kinks_matches_finite_differences() {
     use ctr_core::effects::ClearanceProfile;
-    let robot: Robot<f64, 2> = robot::<2>("liu2023");
-    let mut effects = static_effects::<2>();
-    effects.clearance[0] = Some(ClearanceProfile::Cosine {
+    let mut cosine = static_effects::<2>();
+    cosine.clearance[0] = Some(ClearanceProfile::Cosine {
         max_deflection_rad: 0.04,
         peak_rad: 205f64.to_radians(),
     });
-    let q = Joints::from_mm_deg([40.0, 90.0], [0.0, 120.0]);
-    let (sol, jac) = Solver::default()
-        .solve_jacobian_with(&robot, &q, Model::Torsion, &effects)
-        .unwrap();
-    let want = Solver::default()
-        .solve_with(&robot, &q, Model::Torsion, &effects)
-        .unwrap();
-    assert_eq!(sol.tip.position, want.tip.position);
-    assert!((0..4).all(|c| jac.column(c).unwrap().iter().all(|v| v.is_nan())));
+    joint_columns::<2>(
+        "liu2023",
+        Model::Torsion,
+        0x5151_2323_4545_6767,
+        Some(&cosine),
+    );
+    joint_columns::<2>(
+        "liu2023",
+        Model::Rigid,
+        0x5151_2323_4545_6768,
+        Some(&cosine),
+    );
+    // a table of 36 values: piecewise linear in the relative angle (away from its corners)
+    let mut table = static_effects::<3>();
+    let values: Vec<f64> = (0..36)
+        .map(|k| 0.03 * (1.0 + (k as f64 * 10f64.to_radians() - 3.5).cos()) / 2.0)
+        .collect();
+    table.clearance[0] = ClearanceProfile::table(&values);
+    table.clearance[1] = ClearanceProfile::table(&values[..24]);
+    joint_columns::<3>(
+        "nitinol3",
+        Model::Torsion,
+        0x0F0F_1E1E_2D2D_3C3C,
+        Some(&table),
+    );
+}
+
+/// The boundary friction moments are part of the residuals the Jacobian eliminates: the
+/// joint Jacobian of a solve with friction matches central differences of that solve.
+#[test]
+fn joint_jacobian_with_boundary_friction_matches_finite_differences() {
+    let robot: Robot<f64, 3> = robot::<3>("nitinol3");
+    let mut rng = Rng(0x7777_1111_2222_3333);
+    let friction = [0.15, -0.1, 0.0];
+    for _ in 0..3 {
+        let q = random_joints::<3>("nitinol3", &mut rng);
+        let request = |p: Joints<f64, 3>| Request::new(p, Model::Torsion).friction(friction);
+        let mut jac = ctr_core::JointJacobian::nan();
+        let sol = tight_solver::<3>()
+            .solve(&robot, request(q).joint_jacobian(&mut jac))
+            .unwrap();
+        assert_eq!(sol.status, Status::Converged);
+        for col in 0..6 {
+            let tip = |d: f64| {
+                let mut p = q;
+                if col < 3 {
+                    p.s_mm[col] += d;
+                } else {
+                    p.theta_rad[col - 3] += d;
+                }
+                tight_solver::<3>().solve(&robot, request(p)).unwrap().tip
+            };
+            let fd = difference(&tip(FD_STEP), &tip(-FD_STEP), &sol.tip.rotation, FD_STEP);
+            let rel = relative_error(&jac.column(col).unwrap(), &fd);
+            assert!(rel <= REL_TOL, "column {col} at {q:?}: {rel:.3e}");
+        }
+    }
 }

@@ -1,5 +1,7 @@
 //! Loaded solves against closed forms.
-use ctr_core::{Gravity, Joints, LoadError, Loads, Robot, Solver, Status, TubeParams};
+use ctr_core::{
+    Gravity, Joints, Loads, Model, Request, Robot, SolveError, Solver, Status, TubeParams,
+};
 
 /// A straight cantilever under a small tip force bends by `F L^3 / (3 E I)`
 /// (Euler-Bernoulli); the large-deflection correction is of relative order
@@ -15,7 +17,10 @@ fn cantilever_matches_euler_bernoulli() {
             ..Default::default()
         };
         let sol = Solver::default()
-            .solve_loaded(&robot, &Joints::new([len], [0.3]), &loads)
+            .solve(
+                &robot,
+                Request::new(Joints::new([len], [0.3]), Model::Torsion).loads(loads),
+            )
             .unwrap();
         assert_eq!(sol.status, Status::Converged);
         let expected = force * len * len * len / (3.0 * ei);
@@ -41,7 +46,10 @@ fn tip_moment_makes_an_arc() {
         ..Default::default()
     };
     let sol = Solver::default()
-        .solve_loaded(&robot, &Joints::new([len], [0.0]), &loads)
+        .solve(
+            &robot,
+            Request::new(Joints::new([len], [0.0]), Model::Torsion).loads(loads),
+        )
         .unwrap();
     let k = moment / ei;
     let expected = [(1.0 - (k * len).cos()) / k, 0.0, (k * len).sin() / k];
@@ -68,10 +76,13 @@ fn no_load_is_the_unloaded_solution() {
     .unwrap();
     let q = Joints::from_mm_deg([30.0, 60.0, 95.0], [10.0, 100.0, -60.0]);
     let free = Solver::default()
-        .solve_cold(&robot, &q, ctr_core::Model::Torsion)
+        .solve(&robot, Request::new(q, ctr_core::Model::Torsion).cold())
         .unwrap();
     let loaded = Solver::default()
-        .solve_loaded(&robot, &q, &Loads::default())
+        .solve(
+            &robot,
+            Request::new(q, Model::Torsion).loads(Loads::default()),
+        )
         .unwrap();
     assert!((free.tip.position - loaded.tip.position).norm() < 2e-5);
     // weight needs densities
@@ -81,7 +92,10 @@ fn no_load_is_the_unloaded_solution() {
         ..Default::default()
     };
     assert_eq!(
-        Solver::default().solve_loaded(&bare, &Joints::new([50.0], [0.0]), &g),
-        Err(LoadError::MissingDensity { tube: 1 })
+        Solver::default().solve(
+            &bare,
+            Request::new(Joints::new([50.0], [0.0]), Model::Torsion).loads(g)
+        ),
+        Err(SolveError::MissingDensity { tube: 1 })
     );
 }

@@ -1,9 +1,14 @@
 //! A solve allocates nothing: a counting global allocator sees zero allocations during
-//! warm, cold, backbone, rigid, Jacobian, loaded and f32 solves (the bare-metal build in `tests/no-alloc`
-//! proves the same at link time).
+//! every kind of request (warm, cold, rigid, backbone, joint and parameter Jacobians,
+//! effects with clearance kinks and friction moments, compliance, loads, f32; the
+//! bare-metal build in `tests/no-alloc` proves the same at link time).
 #![allow(unsafe_code)] // a GlobalAlloc impl is unsafe by definition
 
-use ctr_core::{Joints, Model, Solver};
+use ctr_core::nalgebra::Matrix6;
+use ctr_core::{
+    ClearanceProfile, Effects, JointJacobian, Joints, Model, ParameterJacobian, Registration,
+    Request, Solver,
+};
 use ctr_suite::*;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -57,9 +62,9 @@ fn solves_allocate_nothing() {
         gravity: Some(ctr_core::Gravity::new([-1.0, 0.0, 0.0], 9.81)),
         ..Default::default()
     };
-    let effects = ctr_core::effects::Effects::<f64, 3> {
+    let effects = Effects::<f64, 3> {
         feed_offset_mm: [0.2, -0.1, 0.3],
-        registration: Some(ctr_core::effects::Registration::from_axis_angle(
+        registration: Some(Registration::from_axis_angle(
             [0.0, 1.0, 0.0],
             0.3,
             [1.0, 2.0, 3.0],
@@ -67,71 +72,59 @@ fn solves_allocate_nothing() {
         sensor_offset_mm: [0.0, 0.5, 2.0],
         ..Default::default()
     };
+    let mut kinks = effects;
+    kinks.clearance[0] = Some(ClearanceProfile::Cosine {
+        max_deflection_rad: 0.04,
+        peak_rad: 3.5,
+    });
+    let mut jac = JointJacobian::nan();
+    let mut jac2 = JointJacobian::nan();
+    let mut parameters = ParameterJacobian::nan();
+    let mut compliance = Matrix6::zeros();
+    let none = Effects::default();
     let n = allocations_during(|| {
         for (r3, r2) in rows3.iter().zip(&rows2) {
-            checksum += solver3
-                .solve(&robot3, &r3.q, Model::Torsion)
-                .unwrap()
-                .tip
-                .position
-                .x;
-            checksum += solver3
-                .solve_cold(&robot3, &r3.q, Model::Torsion)
-                .unwrap()
-                .tip
-                .position
-                .y;
-            checksum += solver3
-                .solve(&robot3, &r3.q, Model::Rigid)
-                .unwrap()
-                .tip
-                .position
-                .z;
-            checksum += solver2
-                .solve(&robot2, &r2.q, Model::Torsion)
-                .unwrap()
-                .tip
-                .orientation()
-                .w;
-            checksum += solver3
-                .solve_backbone(&robot3, &r3.q, Model::Torsion, &mut points)
-                .unwrap()
-                .0
-                .tip
-                .position
-                .x;
-            let (sol, jac) = solver3
-                .solve_jacobian(&robot3, &r3.q, Model::Torsion)
-                .unwrap();
-            checksum += sol.tip.position.x + jac.feed[2][0] + jac.rotation[0][1];
-            let (_, jac) = solver3
-                .solve_jacobian_with(&robot3, &r3.q, Model::Torsion, &effects)
-                .unwrap();
-            checksum += jac.feed[1][2];
-            let (_, pj) = solver2
-                .solve_parameter_jacobian(&robot2, &r2.q, Model::Rigid)
-                .unwrap();
-            checksum += pj.curvature[1][0];
-            let (_, compliance) = solver2
-                .solve_compliance(&robot2, &r2.q, &ctr_core::Loads::default())
-                .unwrap();
+            let (q3, q2) = (r3.q, r2.q);
+            let warm = solver3.solve(&robot3, Request::new(q3, Model::Torsion));
+            let cold = solver3.solve(&robot3, Request::new(q3, Model::Torsion).cold());
+            let rigid = solver3.solve(&robot3, Request::new(q3, Model::Rigid));
+            let two = solver2.solve(&robot2, Request::new(q2, Model::Torsion));
+            let backbone = Request::new(q3, Model::Torsion).backbone(&mut points);
+            let traced = solver3.solve(&robot3, backbone);
+            let with_jacobian = Request::new(q3, Model::Torsion).joint_jacobian(&mut jac);
+            let jacobian = solver3.solve(&robot3, with_jacobian);
+            // effects, clearance kinks and friction moments with the joint Jacobian
+            let everything = Request::new(q3, Model::Torsion)
+                .effects(&kinks)
+                .friction([0.1, -0.05, 0.0])
+                .joint_jacobian(&mut jac2);
+            let composed = solver3.solve(&robot3, everything);
+            let parameter = Request::new(q2, Model::Rigid).parameter_jacobian(&mut parameters);
+            let by_parameter = solver2.solve(&robot2, parameter);
+            let compliant = Request::new(q2, Model::Torsion)
+                .effects(&none)
+                .compliance(&mut compliance);
+            let by_load = solver2.solve(&robot2, compliant);
+            let friction = solver2.solve(
+                &robot2,
+                Request::new(q2, Model::Torsion).friction([0.1, 0.0]),
+            );
+            let loaded = Request::new(q3, Model::Torsion)
+                .effects(&effects)
+                .loads(gravity);
+            let weighed = solver3.solve(&robot3, loaded);
+            for sol in [warm, cold, rigid, traced, jacobian, composed, weighed] {
+                checksum += sol.unwrap().tip.position.x;
+            }
+            for sol in [two, by_parameter, by_load, friction] {
+                checksum += sol.unwrap().tip.orientation().w;
+            }
+            checksum += jac.feed[2][0] + jac2.rotation[0][1] + parameters.curvature[1][0];
             checksum += compliance[(0, 0)];
-            checksum += solver2
-                .solve_boundary_moment(&robot2, &r2.q, &[0.1, 0.0], &[1.0, 0.0])
-                .unwrap()
-                .tip
-                .position
-                .y;
-            checksum += solver3
-                .solve_loaded(&robot3, &r3.q, &gravity)
-                .unwrap()
-                .tip
-                .position
-                .x;
         }
         for q in &q_f32 {
             checksum += solver_f32
-                .solve(&robot_f32, q, Model::Torsion)
+                .solve(&robot_f32, Request::new(*q, Model::Torsion))
                 .unwrap()
                 .tip
                 .position

@@ -3,7 +3,7 @@
 //! recording down to its noise floor, and without it the error is far larger.
 use ctr_core::effects::{ClearanceProfile, Effects, Registration};
 use ctr_core::friction::PlayFriction;
-use ctr_core::{Gravity, Joints, Loads, Model, Robot, Solver};
+use ctr_core::{Gravity, Joints, Loads, Model, Request, Robot, Solver};
 use ctr_suite::serde_json::Value;
 use ctr_suite::*;
 
@@ -32,7 +32,11 @@ fn floor(truth: &Value) -> f64 {
 fn plain<const N: usize>(robot: &Robot<f64, N>, rows: &[RecRow<N>]) -> f64 {
     let mut solver = Solver::default();
     rms_of(rows, |_, q| {
-        solver.solve(robot, q, Model::Torsion).unwrap().tip.position
+        solver
+            .solve(robot, Request::new(*q, Model::Torsion))
+            .unwrap()
+            .tip
+            .position
     })
 }
 
@@ -61,7 +65,7 @@ fn clearance_convention() {
     let mut solver = Solver::default();
     let with = rms_of(&rows, |_, q| {
         solver
-            .solve_with(&robot, q, Model::Torsion, &effects)
+            .solve(&robot, Request::new(*q, Model::Torsion).effects(&effects))
             .unwrap()
             .tip
             .position
@@ -93,7 +97,7 @@ fn registration_convention() {
     let mut solver = Solver::default();
     let with = rms_of(&rows, |_, q| {
         solver
-            .solve_with(&robot, q, Model::Torsion, &effects)
+            .solve(&robot, Request::new(*q, Model::Torsion).effects(&effects))
             .unwrap()
             .tip
             .position
@@ -112,7 +116,11 @@ fn gravity_convention() {
     };
     let mut solver = Solver::default();
     let with = rms_of(&rows, |_, q| {
-        solver.solve_loaded(&robot, q, &loads).unwrap().tip.position
+        solver
+            .solve(&robot, Request::new(*q, Model::Torsion).loads(loads))
+            .unwrap()
+            .tip
+            .position
     });
     let without = plain(&robot, &rows);
     eprintln!(
@@ -138,7 +146,7 @@ fn friction_convention() {
         }
         let actual = friction.apply(q);
         solver
-            .solve(&robot, &actual, Model::Torsion)
+            .solve(&robot, Request::new(actual, Model::Torsion))
             .unwrap()
             .tip
             .position

@@ -1,6 +1,6 @@
 //! The core reproduces the independent simulator's tables in `shared/data/reference`.
 
-use ctr_core::{Model, Solver, Status};
+use ctr_core::{Model, Request, Solver, Status};
 use ctr_suite::*;
 
 /// Contract: tip position within 1e-3 mm, orientation within 1e-4 rad.
@@ -14,13 +14,15 @@ fn check<const N: usize>(name: &str, table: &str, model: Model) {
     let mut solver = Solver::default();
     let (mut worst_p, mut worst_r) = (0.0_f64, 0.0_f64);
     for row in &rows {
-        let sol = solver.solve_cold(&robot, &row.q, model).unwrap();
+        let sol = solver
+            .solve(&robot, Request::new(row.q, model).cold())
+            .unwrap();
         assert_eq!(sol.status, Status::Converged, "{name} {:?}", row.q);
         let e = (sol.tip.position - nalgebra::Vector3::from(row.p)).norm();
         worst_p = worst_p.max(e);
         worst_r = worst_r.max(angle_between(&sol.tip.orientation(), row.quat));
         // warm start along the table must give the same answer
-        let warm = solver.solve(&robot, &row.q, model).unwrap();
+        let warm = solver.solve(&robot, Request::new(row.q, model)).unwrap();
         assert!((warm.tip.position - sol.tip.position).norm() < 1e-6);
     }
     eprintln!("{name}-{table}: max position error {worst_p:.3e} mm, orientation {worst_r:.3e} rad");
@@ -63,7 +65,9 @@ fn check_gravity<const N: usize>(name: &str) {
     let mut solver = Solver::default();
     let (mut worst_p, mut worst_r) = (0.0_f64, 0.0_f64);
     for row in reference::<N>(name, "gravity") {
-        let sol = solver.solve_loaded(&robot, &row.q, &loads).unwrap();
+        let sol = solver
+            .solve(&robot, Request::new(row.q, Model::Torsion).loads(loads))
+            .unwrap();
         assert_eq!(sol.status, Status::Converged, "{name} {:?}", row.q);
         worst_p = worst_p.max((sol.tip.position - nalgebra::Vector3::from(row.p)).norm());
         worst_r = worst_r.max(angle_between(&sol.tip.orientation(), row.quat));

@@ -1,6 +1,6 @@
 //! The stability margin falls to zero at a snap and stays positive over the shared
 //! robots' stated stable ranges.
-use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+use ctr_core::{Joints, Model, Request, Robot, Solver, TubeParams};
 use ctr_suite::*;
 
 /// The seed's robot with transmissions 100 mm longer (shared/data/robots/liu2023.toml
@@ -20,10 +20,13 @@ fn margin_vanishes_at_the_snap_of_a_long_transmission_pair() {
     .unwrap();
     let margin = |s1: f64, rel: f64| {
         Solver::default()
-            .solve_cold(
+            .solve(
                 &robot,
-                &Joints::from_mm_deg([s1, s1 + 40.0], [0.0, rel]),
-                Model::Torsion,
+                Request::new(
+                    Joints::from_mm_deg([s1, s1 + 40.0], [0.0, rel]),
+                    Model::Torsion,
+                )
+                .cold(),
             )
             .unwrap()
             .stability_margin
@@ -52,8 +55,10 @@ fn margin_vanishes_at_the_snap_of_a_long_transmission_pair() {
             let sol = solver
                 .solve(
                     &robot,
-                    &Joints::from_mm_deg([s1, s1 + 40.0], [0.0, rel]),
-                    Model::Torsion,
+                    Request::new(
+                        Joints::from_mm_deg([s1, s1 + 40.0], [0.0, rel]),
+                        Model::Torsion,
+                    ),
                 )
                 .unwrap();
             if let Some(p) = prev {
@@ -85,7 +90,10 @@ fn min_margin<const N: usize>(name: &str, inc: [(f64, f64); N], steps: usize) ->
             r /= 12;
         }
         let sol = Solver::default()
-            .solve_cold(&robot, &Joints::from_mm_deg(s, th), Model::Torsion)
+            .solve(
+                &robot,
+                Request::new(Joints::from_mm_deg(s, th), Model::Torsion).cold(),
+            )
             .unwrap();
         min = min.min(sol.stability_margin);
     }

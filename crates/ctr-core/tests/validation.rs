@@ -1,7 +1,8 @@
 //! Bad parameters and joints are refused with the tube and field named; solves never
 //! panic and never hand back NaN as a converged result.
 use ctr_core::{
-    Field, JointError, JointKind, Joints, Model, Robot, RobotError, Solver, Status, TubeParams,
+    Field, JointError, JointKind, Joints, Model, Request, Robot, RobotError, SolveError, Solver,
+    Status, TubeParams,
 };
 
 fn good() -> [TubeParams<f64>; 2] {
@@ -119,9 +120,12 @@ fn every_bad_tube_field_is_named() {
 fn every_bad_joint_is_named() {
     let robot = Robot::new(good()).unwrap();
     let solve = |s: [f64; 2], t: [f64; 2]| {
-        Solver::default().solve_cold(&robot, &Joints::from_mm_deg(s, t), Model::Torsion)
+        Solver::default().solve(
+            &robot,
+            Request::new(Joints::from_mm_deg(s, t), Model::Torsion).cold(),
+        )
     };
-    let cases: Vec<(JointError, &str)> = vec![
+    let cases: Vec<(SolveError, &str)> = vec![
         (
             solve([f64::NAN, 50.0], [0.0, 0.0]).unwrap_err(),
             "s1_mm must be a finite number",
@@ -151,10 +155,10 @@ fn every_bad_joint_is_named() {
     }
     assert_eq!(
         solve([10.0, f64::NAN], [0.0, 0.0]).unwrap_err(),
-        JointError::NotFinite {
+        SolveError::Joint(JointError::NotFinite {
             tube: 2,
             kind: JointKind::Feed
-        }
+        })
     );
 }
 
@@ -168,7 +172,10 @@ fn edge_configurations_solve() {
         ([180.0, 260.0], [0.0, 180.0]),
     ] {
         let sol = Solver::default()
-            .solve_cold(&robot, &Joints::from_mm_deg(s, t), Model::Torsion)
+            .solve(
+                &robot,
+                Request::new(Joints::from_mm_deg(s, t), Model::Torsion).cold(),
+            )
             .unwrap();
         assert_eq!(sol.status, Status::Converged, "{s:?} {t:?}");
         assert!(sol.tip.position.iter().all(|v| v.is_finite()));
@@ -199,9 +206,11 @@ fn never_nan_when_converged_even_past_a_snap() {
             Joints::from_mm_deg([s1, s1 + 100.0], [0.0, theta]),
             Joints::from_mm_deg([s1, s1 + 100.0], [0.0, -theta]),
         ] {
-            let warm = solver.solve(&robot, &q, Model::Torsion).unwrap();
+            let warm = solver
+                .solve(&robot, Request::new(q, Model::Torsion))
+                .unwrap();
             let cold = Solver::default()
-                .solve_cold(&robot, &q, Model::Torsion)
+                .solve(&robot, Request::new(q, Model::Torsion).cold())
                 .unwrap();
             for sol in [warm, cold] {
                 counts[sol.status as usize] += 1;

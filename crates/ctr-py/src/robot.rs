@@ -15,7 +15,9 @@ use ctr_analysis::formats::RobotSpec;
 use ctr_analysis::ik::{Ik, IkError, IkOptions, IkTarget};
 use ctr_analysis::model::{FkModel, ModelError};
 use ctr_analysis::{status_name, AnyRobot, Error, ErrorKind, Location};
-use ctr_core::{JointError, Joints, Model, Robot as CoreRobot, Solver, Status};
+use ctr_core::{
+    JointError, Joints, Model, Request, Robot as CoreRobot, SolveError, Solver, Status,
+};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use pyo3::prelude::*;
 use pyo3::types::{PyTuple, PyType};
@@ -94,7 +96,14 @@ fn backbone_of<const N: usize>(
     let joints = joints_of::<N>(q);
     let mut points = vec![Vector3::zeros(); 256];
     loop {
-        let (sol, n) = Solver::default().solve_backbone(robot, &joints, model, &mut points)?;
+        let request = Request::new(joints, model).backbone(&mut points);
+        let sol = match Solver::default().solve(robot, request) {
+            Ok(sol) => sol,
+            Err(SolveError::Joint(e)) => return Err(e),
+            // an unloaded request of the core's models has no other error
+            Err(e) => unreachable!("{e}"),
+        };
+        let n = sol.backbone_points;
         if n <= points.len() {
             let xyz = points[..n].iter().flat_map(|p| [p.x, p.y, p.z]).collect();
             return Ok((sol.status, sol.residual_per_mm, xyz));
@@ -614,7 +623,7 @@ impl Robot {
                 let (status, residual, mut points) = solved.map_err(|e| {
                     Error::new(
                         Location::file("q"),
-                        fkm.row_error(ctr_core::LoadError::Joint(e)),
+                        fkm.row_error(ctr_core::SolveError::Joint(e)),
                     )
                 })?;
                 if let Some(r) = fkm.effects().registration {

@@ -1,10 +1,14 @@
-//! Links a full torsion solve (2 and 3 tubes, f64 and f32) into a bare-metal binary
-//! without a global allocator: proof that ctr-core never allocates.
+//! Links every kind of solve request (2 and 3 tubes, f64 and f32: torsion, rigid with
+//! backbone points, loads with the compliance, joint and parameter Jacobians, effects
+//! with clearance kinks and friction moments) into a bare-metal binary without a global
+//! allocator: proof that ctr-core never allocates.
 #![no_std]
 #![no_main]
 
 use core::panic::PanicInfo;
-use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
+use ctr_core::{
+    JointJacobian, Joints, Model, ParameterJacobian, Request, Robot, Solver, TubeParams,
+};
 
 #[panic_handler]
 fn panic(_: &PanicInfo) -> ! {
@@ -43,31 +47,51 @@ fn solve3<T: ctr_core::Real>(x: T) -> T {
     );
     let mut pts = [nalgebra_vec(); 32];
     let mut sum = T::zero();
-    if let Ok(sol) = solver.solve(&robot, &q, Model::Torsion) {
+    if let Ok(sol) = solver.solve(&robot, Request::new(q, Model::Torsion)) {
         sum += sol.tip.position.x + sol.tip.orientation().w;
     }
-    if let Ok((sol, _)) = solver.solve_backbone(&robot, &q, Model::Rigid, &mut pts) {
+    if let Ok(sol) = solver.solve(&robot, Request::new(q, Model::Rigid).backbone(&mut pts)) {
         sum += sol.tip.position.y;
     }
     let loads = ctr_core::Loads {
         tip_force_n: [x, T::zero(), T::zero()],
         ..Default::default()
     };
-    if let Ok(sol) = solver.solve_loaded(&robot, &q, &loads) {
-        sum += sol.tip.position.z;
+    let mut compliance = ctr_core::nalgebra::Matrix6::zeros();
+    let request = Request::new(q, Model::Torsion).loads(loads);
+    if let Ok(sol) = solver.solve(&robot, request.compliance(&mut compliance)) {
+        sum += sol.tip.position.z + compliance[(0, 0)];
     }
-    if let Ok((sol, jac)) = solver.solve_jacobian(&robot, &q, Model::Torsion) {
+    let mut jac = JointJacobian::nan();
+    if let Ok(sol) = solver.solve(
+        &robot,
+        Request::new(q, Model::Torsion).joint_jacobian(&mut jac),
+    ) {
         sum += sol.tip.position.x + jac.feed[0][0] + jac.rotation[2][5];
     }
-    let effects = ctr_core::effects::Effects {
+    // effects, clearance kinks and friction moments, with the joint Jacobian
+    let mut effects = ctr_core::Effects {
         sensor_offset_mm: [T::zero(), T::zero(), T::one()],
         ..Default::default()
     };
-    if let Ok((_, jac)) = solver.solve_jacobian_with(&robot, &q, Model::Torsion, &effects) {
+    effects.clearance[0] = Some(ctr_core::ClearanceProfile::Cosine {
+        max_deflection_rad: nalgebra_convert(0.04),
+        peak_rad: nalgebra_convert(3.5),
+    });
+    let request =
+        Request::new(q, Model::Torsion)
+            .effects(&effects)
+            .friction([x, T::zero(), T::zero()]);
+    if solver
+        .solve(&robot, request.joint_jacobian(&mut jac))
+        .is_ok()
+    {
         sum += jac.feed[0][1];
     }
-    if let Ok((_, jac)) = solver.solve_parameter_jacobian(&robot, &q, Model::Torsion) {
-        sum += jac.curvature[1][1];
+    let mut parameters = ParameterJacobian::nan();
+    let request = Request::new(q, Model::Torsion).parameter_jacobian(&mut parameters);
+    if solver.solve(&robot, request).is_ok() {
+        sum += parameters.curvature[1][1];
     }
     sum
 }
@@ -84,8 +108,10 @@ fn solve2(x: f64) -> f64 {
         Ok(r) => r,
         Err(_) => return 0.0,
     };
-    match Solver::default().solve_cold(&robot, &Joints::new([40.0, 90.0], [0.0, x]), Model::Torsion)
-    {
+    match Solver::default().solve(
+        &robot,
+        Request::new(Joints::new([40.0, 90.0], [0.0, x]), Model::Torsion).cold(),
+    ) {
         Ok(sol) => sol.tip.position.z,
         Err(_) => 0.0,
     }

@@ -153,7 +153,7 @@ pub struct Gravity {
 }
 
 fn standard_gravity() -> f64 {
-    ctr_core::loads::STANDARD_GRAVITY_M_S2
+    ctr_core::STANDARD_GRAVITY_M_S2
 }
 
 /// `[model.effects.stiffness]`.

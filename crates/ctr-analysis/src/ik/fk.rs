@@ -15,7 +15,9 @@
 
 use super::limits::JointLimits;
 use ctr_core::effects::Effects;
-use ctr_core::{Frame, Gravity, Joints, Loads, Model, Robot, Solver, SolverConfig, Status};
+use ctr_core::{
+    Frame, Gravity, Joints, Loads, Model, Request, Robot, Solver, SolverConfig, Status,
+};
 use nalgebra::{Matrix3, Rotation3, SMatrix, UnitQuaternion, Vector3};
 
 /// Most joints (`2 * MAX_TUBES`): the IK's matrices have this size, padded.
@@ -100,24 +102,17 @@ impl<const N: usize> CoreFk<N> {
         solver: &mut Solver<f64, N>,
         joints: &Joints<f64, N>,
     ) -> Option<ctr_core::Solution<f64, N>> {
-        if self.plain {
-            return solver.solve(&self.robot, joints, self.model).ok();
+        let mut request = Request::new(*joints, self.model);
+        if !self.plain {
+            request = request.effects(&self.effects);
         }
-        match self.gravity {
-            None => solver
-                .solve_with(&self.robot, joints, self.model, &self.effects)
-                .ok(),
-            Some(g) => {
-                let loads = Loads {
-                    gravity: Some(g),
-                    ..Default::default()
-                };
-                let actual = self.effects.actual(joints);
-                let mut sol = solver.solve_loaded(&self.robot, &actual, &loads).ok()?;
-                sol.tip = self.effects.measured(&sol.tip);
-                Some(sol)
-            }
+        if let Some(g) = self.gravity {
+            request = request.loads(Loads {
+                gravity: Some(g),
+                ..Default::default()
+            });
         }
+        solver.solve(&self.robot, request).ok()
     }
 
     /// The joint slice `s_1, theta_1, ...` as the core's joints.
@@ -190,9 +185,11 @@ impl<const N: usize> TipFk for CoreFk<N> {
             return false;
         }
         let mut s = self.current;
-        let Ok((sol, analytic)) =
-            s.solve_jacobian_with(&self.robot, &Self::joints(q), self.model, &self.effects)
-        else {
+        let mut analytic = ctr_core::JointJacobian::nan();
+        let request = Request::new(Self::joints(q), self.model)
+            .effects(&self.effects)
+            .joint_jacobian(&mut analytic);
+        let Ok(sol) = s.solve(&self.robot, request) else {
             return false;
         };
         let finite = analytic

@@ -22,15 +22,10 @@
 //! operator on each exposed length `s_i` (half-width in mm). The state starts centred at
 //! the first command of a run ([`PlayFriction::reset`]).
 
-use crate::dual::{Dual, Num};
-use crate::jacobian::{integrate, GFrame, Inputs};
-use crate::joints::{JointError, Joints};
+use crate::model::joints::Joints;
+use crate::model::robot::Robot;
 use crate::real::Real;
-use crate::robot::Robot;
-use crate::solver::{solve_linear, Model, Solution, Solver, Status};
-use crate::tangent::NoPose;
-use crate::Frame;
-use nalgebra::{Matrix3, Vector3};
+use crate::solve::{Model, Request, Solution, SolveError, Solver};
 
 /// Play-operator friction parameters and memory for a robot of `N` tubes.
 ///
@@ -171,7 +166,7 @@ pub fn play<T: Real>(y: T, x: T, w: T) -> T {
 /// the ratio of the tube radius to the lever arm of the contact forces, so it is
 /// dimensionless), with the sign of the direction of relative rotation
 /// `sigma_j = sign(d(theta_{j+1} - theta_j))`. It enters the twist boundary-value
-/// problem of [`crate::twist`] as the torque at tube j's tip and its reaction on tube
+/// problem of [`crate::integrate::twist`] as the torque at tube j's tip and its reaction on tube
 /// j+1:
 ///
 /// ```text
@@ -281,159 +276,34 @@ impl<T: Real, const N: usize> BoundaryMoment<T, N> {
         self.last = Some(rel);
     }
 
-    /// Steps the memory to `q` and solves with the friction moments it implies (the
-    /// trajectory API; see [`Solver::solve_boundary_moment`] for one solve).
+    /// The boundary moment coefficient of each pair, `mu'_j sigma_j`: what
+    /// [`Request::friction`] takes.
+    ///
+    /// ```
+    /// use ctr_core::{friction::BoundaryMoment, Joints};
+    /// let mut f = BoundaryMoment::<f64, 2>::new([0.1, 0.0]);
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, 0.0]));
+    /// f.update(&Joints::new([10.0, 50.0], [0.0, -0.1]));
+    /// assert_eq!(f.coefficients(), [-0.1, 0.0]);
+    /// ```
+    pub fn coefficients(&self) -> [T; N] {
+        let mut out = [T::zero(); N];
+        for j in 0..N.saturating_sub(1) {
+            out[j] = self.mu[j] * self.direction[j];
+        }
+        out
+    }
+
+    /// Steps the memory to `q` and solves the torsion model with the friction moments it
+    /// implies (the trajectory API; a single solve takes [`Request::friction`]).
     pub fn step(
         &mut self,
         solver: &mut Solver<T, N>,
         robot: &Robot<T, N>,
         q: &Joints<T, N>,
-    ) -> Result<Solution<T, N>, JointError> {
+    ) -> Result<Solution<T, N>, SolveError> {
         self.update(q);
-        solver.solve_boundary_moment(robot, q, &self.mu, &self.direction)
-    }
-}
-
-/// Directions of a friction solve's Newton Jacobian: the base twists.
-const FRICTION_DIRECTIONS: usize = crate::MAX_TUBES - 1;
-
-impl<T: Real, const N: usize> Solver<T, N> {
-    /// Torsion-model forward kinematics with the seed's boundary friction moments
-    /// ([`BoundaryMoment`]) for given coefficients `mu` and directions of relative
-    /// rotation `direction` (+1, -1, 0 per pair). With all `mu * direction` zero this is
-    /// [`solve`](Self::solve) itself. Newton's method on the base twists from the
-    /// frictionless solution (warm-started), with a dual-number Jacobian.
-    ///
-    /// ```
-    /// use ctr_core::{Joints, Model, Robot, Solver, TubeParams};
-    /// let outer = TubeParams { curvature_radius_mm: Some(200.0), ..TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-    /// let inner = TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) };
-    /// let robot = Robot::new([outer, inner]).unwrap();
-    /// let q = Joints::from_mm_deg([40.0, 90.0], [0.0, 90.0]);
-    /// let free = Solver::default().solve(&robot, &q, Model::Torsion).unwrap();
-    /// let none = Solver::default().solve_boundary_moment(&robot, &q, &[0.0, 0.0], &[1.0, 0.0]).unwrap();
-    /// assert_eq!(free, none);
-    /// let rub = Solver::default().solve_boundary_moment(&robot, &q, &[0.2, 0.0], &[1.0, 0.0]).unwrap();
-    /// // the outer tube's tip now carries a torque: it is twisted there
-    /// assert!(rub.residual_per_mm < 1e-10 && (rub.tip.position - free.tip.position).norm() > 1e-3);
-    /// ```
-    pub fn solve_boundary_moment(
-        &mut self,
-        robot: &Robot<T, N>,
-        q: &Joints<T, N>,
-        mu: &[T; N],
-        direction: &[T; N],
-    ) -> Result<Solution<T, N>, JointError> {
-        let free = self.solve(robot, q, Model::Torsion)?;
-        let mut coefficient = [T::zero(); N];
-        for j in 0..N - 1 {
-            coefficient[j] = mu[j] * direction[j];
-        }
-        if coefficient.iter().all(|v| *v == T::zero()) || free.status != Status::Converged {
-            return Ok(free);
-        }
-        let sections = self.sections(robot, q);
-        let m = N - 1;
-        let mut x = free.base_twist_per_mm;
-        let plain = Inputs::plain(robot, q, &x);
-        let mut iterations = 0;
-        let mut status = Status::IterationLimit;
-        while iterations < self.config.max_iterations {
-            iterations += 1;
-            let mut inp = Inputs {
-                s: plain.s.map(Dual::<T, FRICTION_DIRECTIONS>::cst),
-                theta: plain.theta.map(Dual::cst),
-                x: x.map(Dual::cst),
-                ei: plain.ei,
-                gj: plain.gj,
-                k: plain.k,
-            };
-            for j in 0..m {
-                inp.x[j] = Dual::var(x[j], j);
-            }
-            let pass = integrate(
-                robot,
-                q,
-                &sections,
-                &inp,
-                Model::Torsion,
-                Some(&coefficient),
-                NoPose,
-            );
-            let mut r = [T::zero(); N];
-            let mut jac = [[T::zero(); N]; N];
-            let mut norm = T::zero();
-            for i in 0..m {
-                r[i] = pass.r[i].re;
-                norm = norm.max(r[i].abs());
-                for k in 0..m {
-                    jac[i][k] = pass.r[i].eps.get(k).copied().unwrap_or(T::zero());
-                }
-            }
-            if !norm.is_finite() {
-                status = Status::Diverged;
-                break;
-            }
-            if norm <= self.config.residual_tolerance_per_mm {
-                status = Status::Converged;
-                break;
-            }
-            let Some(dx) = solve_linear::<T, N>(jac, r, m) else {
-                status = Status::Diverged;
-                break;
-            };
-            for i in 0..m {
-                x[i] -= dx[i];
-            }
-        }
-        // the pose and residual at the final unknowns
-        let inp = Inputs::plain(robot, q, &x);
-        let pass = integrate(
-            robot,
-            q,
-            &sections,
-            &inp,
-            Model::Torsion,
-            Some(&coefficient),
-            GFrame::identity(T::zero(), T::one()),
-        );
-        let mut residual = T::zero();
-        for i in 0..m {
-            residual = residual.max(pass.r[i].abs());
-        }
-        let (gj, present) = (
-            inp.gj,
-            sections
-                .list
-                .first()
-                .filter(|_| sections.len > 0)
-                .map(|s| s.present)
-                .unwrap_or([false; N]),
-        );
-        let mut un = T::zero();
-        for j in 0..m {
-            if present[j] {
-                un -= gj[j] * x[j];
-            }
-        }
-        x[N - 1] = un / gj[N - 1];
-        let mut base_angle = [T::zero(); N];
-        for j in 0..N {
-            base_angle[j] =
-                q.theta_rad[j] + (robot.tubes()[j].params().length_mm - q.s_mm[j]) * x[j];
-        }
-        let f = &pass.frame;
-        Ok(Solution {
-            tip: Frame {
-                rotation: Matrix3::from_fn(|i, j| f.r[i][j]),
-                position: Vector3::new(f.p[0], f.p[1], f.p[2]),
-            },
-            status,
-            residual_per_mm: residual,
-            iterations: free.iterations + iterations,
-            base_twist_per_mm: x,
-            base_angle_rad: base_angle,
-            stability_margin: free.stability_margin,
-        })
+        let request = Request::new(*q, Model::Torsion).friction(self.coefficients());
+        solver.solve(robot, request)
     }
 }

@@ -5,8 +5,8 @@
 //! Between two cuts the set of tubes present and the set of curved tubes are fixed, so
 //! every section has constant coefficients.
 
+use crate::model::robot::Robot;
 use crate::real::{c, Real};
-use crate::robot::Robot;
 use crate::MAX_TUBES;
 
 /// How much longer the steps of a cold solve's first Newton iterations are. They bring
@@ -37,6 +37,9 @@ pub(crate) struct Section<T, const N: usize> {
     pub h: T,
     /// the coarse step of a cold solve's first Newton iterations, mm
     pub h_coarse: T,
+    /// tube i is curved over the section (`a[i] != 0`), and couples (`g[i] != 0`)
+    pub curved_a: [bool; N],
+    pub curved_g: [bool; N],
     /// `1 / sum(E I present)`, 1/(N mm^2)
     pub inv_k: T,
 }
@@ -87,10 +90,16 @@ impl<T: Real, const N: usize> Sections<T, N> {
             single: 0,
             h: T::zero(),
             h_coarse: T::zero(),
+            curved_a: [false; N],
+            curved_g: [false; N],
             inv_k: T::zero(),
         };
-        let mut list = [empty; MAX_BREAKS];
-        let mut len = 0;
+        // built in place (the list is ~1 KB: a copy on return would cost as much as
+        // the cutting)
+        let mut out = Sections {
+            list: [empty; MAX_BREAKS],
+            len: 0,
+        };
         for k in 0..n.saturating_sub(1) {
             let (a, b) = (cuts[k], cuts[k + 1]);
             if b <= a {
@@ -115,16 +124,19 @@ impl<T: Real, const N: usize> Sections<T, N> {
                     let ek = tube.bending_stiffness_nmm2() * k_i;
                     sec.a[i] = ek / stiff;
                     sec.g[i] = ek / tube.torsional_stiffness_nmm2();
+                    sec.curved_a[i] = sec.a[i] != T::zero();
+                    sec.curved_g[i] = sec.g[i] != T::zero();
                     sec.curved += 1;
                     sec.single = i;
                 }
             }
             sec.h = step_length(&sec, h_max, fraction);
             sec.h_coarse = step_length(&sec, h_max * c(COARSE_FACTOR), fraction * c(COARSE_FACTOR));
-            list[len] = sec;
-            len += 1;
+
+            out.list[out.len] = sec;
+            out.len += 1;
         }
-        Sections { list, len }
+        out
     }
 }
 

@@ -21,13 +21,18 @@
 //! - `sensor_offset`: the tracked point sits at a fixed offset in the tip frame:
 //!   `p = p_tip + R_tip d`.
 //! - `stiffness`, `precurvature`: scale factors per tube, see [`crate::Robot::scaled`].
-//! - `gravity` and tip loads: [`crate::loads`]. `friction`: [`crate::friction`].
+//! - `gravity` and tip loads: [`crate::Loads`]. `friction`: [`crate::friction`].
 //! - `latency` needs a recording's time series and lives in the std crate.
+//!
+//! A solve takes them with [`crate::Request::effects`]: joint offsets before the
+//! mechanics, clearance kinks inside it (and in its Jacobians), sensor offset and
+//! registration on its results.
 
-use crate::joints::Joints;
+use crate::math::dual::Num;
+use crate::math::se3::Frame;
+use crate::model::joints::Joints;
 use crate::real::{c, Real};
-use crate::se3::Frame;
-use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
+use nalgebra::{Matrix3, Rotation3, Unit, Vector3, Vector6};
 
 /// Capacity of a clearance table (values over one turn of the relative angle).
 pub const CLEARANCE_TABLE_CAPACITY: usize = 72;
@@ -93,33 +98,34 @@ impl<T: Real> ClearanceProfile<T> {
         self.deflection_cs(co, s)
     }
 
-    /// Deflection from `(cos phi, sin phi)`.
-    pub(crate) fn deflection_cs(&self, cos_phi: T, sin_phi: T) -> T {
+    /// Deflection from `(cos phi, sin phi)`, on plain or dual numbers.
+    pub(crate) fn deflection_cs<S: Num<T>>(&self, cos_phi: S, sin_phi: S) -> S {
         match *self {
             ClearanceProfile::Cosine {
                 max_deflection_rad,
                 peak_rad,
             } => {
                 let (sp, cp) = peak_rad.sin_cos();
-                max_deflection_rad * (T::one() + cos_phi * cp + sin_phi * sp) * c(0.5)
+                (S::cst(T::one()) + cos_phi * cp + sin_phi * sp) * max_deflection_rad * c::<T>(0.5)
             }
             ClearanceProfile::Table { values_rad, len } => {
                 let len = len.clamp(1, CLEARANCE_TABLE_CAPACITY);
                 let turn = T::two_pi();
                 let mut phi = sin_phi.atan2(cos_phi);
-                if phi < T::zero() {
-                    phi += turn;
+                if phi.re() < T::zero() {
+                    phi += S::cst(turn);
                 }
-                let x = phi / turn * nalgebra::convert::<f64, T>(len as f64);
-                let k: f64 = x.floor().to_subset().unwrap_or(0.0);
+                let x = phi / S::cst(turn) * nalgebra::convert::<f64, T>(len as f64);
+                let floor = x.re().floor();
+                let k: f64 = floor.to_subset().unwrap_or(0.0);
                 let k0 = if k.is_finite() && k >= 0.0 {
                     (k as usize) % len
                 } else {
                     0
                 };
-                let frac = x - x.floor();
+                let frac = x - S::cst(floor);
                 let k1 = (k0 + 1) % len;
-                values_rad[k0] * (T::one() - frac) + values_rad[k1] * frac
+                (S::cst(T::one()) - frac) * values_rad[k0] + frac * values_rad[k1]
             }
         }
     }
@@ -259,35 +265,18 @@ impl<T: Real, const N: usize> Effects<T, N> {
     }
 }
 
-/// Applies the clearance kink of pair `i` (tube i+1 leaving tube i) to tube n's frame,
-/// given the relative angles `(cos, sin)` of tubes i and i+1 to tube n.
-#[inline]
-pub(crate) fn kink<T: Real>(
-    frame: &mut Frame<T>,
-    profile: &ClearanceProfile<T>,
-    zi: [T; 2],
-    zj: [T; 2],
-) {
-    // phi = b_{i+1} - b_i
-    let cos_phi = zj[0] * zi[0] + zj[1] * zi[1];
-    let sin_phi = zj[1] * zi[0] - zj[0] * zi[1];
-    let delta = profile.deflection_cs(cos_phi, sin_phi);
-    if delta == T::zero() {
-        return;
+impl<T: Real, const N: usize> Effects<T, N> {
+    /// A derivative column `(dp, omega)` of the tip (W) as the measured point and frame
+    /// see it: the tracked point `p + R d` moves with `dp + omega x (R d)`, then the
+    /// registration turns both blocks. `arm` is `R d` at the solution.
+    pub(crate) fn measured_column(&self, col: &Vector6<T>, arm: &Vector3<T>) -> Vector6<T> {
+        let omega = col.fixed_rows::<3>(3).into_owned();
+        let mut dp = col.fixed_rows::<3>(0) + omega.cross(arm);
+        let mut w = omega;
+        if let Some(r) = &self.registration {
+            dp = r.rotation * dp;
+            w = r.rotation * w;
+        }
+        Vector6::new(dp[0], dp[1], dp[2], w[0], w[1], w[2])
     }
-    let (s, co) = delta.sin_cos();
-    let ry = Matrix3::new(
-        co,
-        T::zero(),
-        s,
-        T::zero(),
-        T::one(),
-        T::zero(),
-        -s,
-        T::zero(),
-        co,
-    );
-    frame.rotate_z((zj[0], zj[1]));
-    frame.rotation *= ry;
-    frame.rotate_z((zj[0], -zj[1]));
 }

@@ -5,8 +5,8 @@
 //! has turned tube i about +z, right-handed, measured at the actuator (not the tip).
 //! Files use degrees; the core keeps radians.
 
+use crate::model::robot::Robot;
 use crate::real::{c, Real};
-use crate::robot::Robot;
 use core::fmt;
 
 /// Which half of a joint pair a [`JointError`] is about.

@@ -1,10 +1,14 @@
-//! The tip frame's derivatives carried as spatial twists: the pose half of the Jacobian
-//! pass ([`crate::jacobian`]) without differentiating 3 x 3 rotation matrices.
+//! The frames a pass along the backbone moves: the plain frame ([`Frame`], optionally
+//! tracing backbone points), the frame with its derivatives (`Tangents`), or none
+//! (`NoPose`); all behind `Pose`.
 //!
-//! # Method
+//! # The derivatives as spatial twists
+//!
+//! `Tangents` carries the tip frame's derivatives (the pose half of the Jacobian
+//! passes, [`crate::solve::jacobian`]) without differentiating 3 x 3 rotation matrices.
 //!
 //! The backbone's frame is a product of steps, `T' = T E`, with `E = exp(xi)` for a
-//! body twist `xi = (w, v)` (a Magnus step, [`crate::se3::exp`]), a turn about the own z
+//! body twist `xi = (w, v)` (a Magnus step, [`crate::math::se3::exp`]), a turn about the own z
 //! axis, or a straight advance along it. A derivative direction `delta` of the frame is
 //! kept as the spatial twist `eta = (phi, rho)` with
 //! `delta T T^{-1} = [[phi]x, rho; 0, 0]`, so `delta R = [phi]x R` and
@@ -39,35 +43,132 @@
 //! the position's derivative and the spatial angular velocity, the rows of the
 //! Jacobians.
 
-use crate::dual::Dual;
-use crate::jacobian::{cross, mat_mul, series, M3, V3};
+use crate::math::dual::Dual;
+use crate::math::linalg::{cross, mat_mul, M3, V3};
+use crate::math::se3::{exp_of, Frame};
+use crate::math::series::{sin_cos, SERIES_LIMIT_SQ, SINC, SIN_DEFECT, VERSINE};
+use crate::model::effects::Registration;
 use crate::real::{c, Real};
-use crate::se3::SERIES_LIMIT_SQ;
-use nalgebra::Vector6;
+use nalgebra::{Matrix3, Vector3, Vector6};
 
-/// A frame that a backbone integration moves step by step: the plain frame
-/// ([`crate::jacobian::GFrame`]), the frame with its derivatives ([`Tangents`]), or
-/// nothing ([`NoPose`], for passes that need only the twist).
+/// A frame that a backbone integration moves step by step.
 pub(crate) trait Pose<T, S> {
+    /// False for `NoPose`: the pass then skips the pose's arithmetic altogether.
+    const MOVES: bool = true;
     /// Moves the frame by `exp(w, v)` given in its own body coordinates.
     fn step(&mut self, w: V3<S>, v: V3<S>);
     /// Turns the frame about its own z axis by the angle whose (cos, sin) is given
     /// (a unit pair).
     fn rotate_z(&mut self, co: S, si: S);
+    /// Turns the frame about its own y axis likewise.
+    fn rotate_y(&mut self, co: S, si: S);
     /// Moves the frame by `h` along its own z axis.
     fn advance(&mut self, h: S);
+    /// True when the pass should write backbone points: sections integrated in closed
+    /// form are then cut into steps of the RK4 length too.
+    fn traces(&self) -> bool {
+        false
+    }
+    /// Writes the frame's origin as the next backbone point (where [`traces`](Self::traces)).
+    fn mark(&mut self) {}
 }
 
 /// A pose that is not tracked (shooting iterations need only the free-tip twists).
 pub(crate) struct NoPose;
 
 impl<T, S> Pose<T, S> for NoPose {
+    const MOVES: bool = false;
     #[inline(always)]
     fn step(&mut self, _: V3<S>, _: V3<S>) {}
     #[inline(always)]
     fn rotate_z(&mut self, _: S, _: S) {}
     #[inline(always)]
+    fn rotate_y(&mut self, _: S, _: S) {}
+    #[inline(always)]
     fn advance(&mut self, _: S) {}
+}
+
+impl<T: Real> Pose<T, T> for Frame<T> {
+    #[inline(always)]
+    fn step(&mut self, w: V3<T>, v: V3<T>) {
+        let (r, p) = exp_of::<T, T>(w, v);
+        self.compose(
+            &Matrix3::new(
+                r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+            ),
+            &Vector3::new(p[0], p[1], p[2]),
+        );
+    }
+    #[inline(always)]
+    fn rotate_z(&mut self, co: T, si: T) {
+        Frame::rotate_z(self, co, si);
+    }
+    #[inline(always)]
+    fn rotate_y(&mut self, co: T, si: T) {
+        Frame::rotate_y(self, co, si);
+    }
+    #[inline(always)]
+    fn advance(&mut self, h: T) {
+        self.position += self.rotation.column(2) * h;
+    }
+}
+
+/// A plain frame that writes its origin into a caller's buffer at every
+/// [`mark`](Pose::mark) (in the measuring frame of `registration`), counting the points
+/// that did not fit.
+pub(crate) struct Traced<'a, T: Real> {
+    pub frame: Frame<T>,
+    buf: &'a mut [Vector3<T>],
+    registration: Option<Registration<T>>,
+    /// Points the backbone has (written or not).
+    pub needed: usize,
+}
+
+impl<'a, T: Real> Traced<'a, T> {
+    /// Starts at `frame`, with no points written yet.
+    pub fn new(
+        frame: Frame<T>,
+        buf: &'a mut [Vector3<T>],
+        registration: Option<Registration<T>>,
+    ) -> Self {
+        Traced {
+            frame,
+            buf,
+            registration,
+            needed: 0,
+        }
+    }
+}
+
+impl<T: Real> Pose<T, T> for Traced<'_, T> {
+    #[inline(always)]
+    fn step(&mut self, w: V3<T>, v: V3<T>) {
+        self.frame.step(w, v);
+    }
+    #[inline(always)]
+    fn rotate_z(&mut self, co: T, si: T) {
+        Frame::rotate_z(&mut self.frame, co, si);
+    }
+    #[inline(always)]
+    fn rotate_y(&mut self, co: T, si: T) {
+        Frame::rotate_y(&mut self.frame, co, si);
+    }
+    #[inline(always)]
+    fn advance(&mut self, h: T) {
+        Pose::<T, T>::advance(&mut self.frame, h);
+    }
+    fn traces(&self) -> bool {
+        true
+    }
+    fn mark(&mut self) {
+        if let Some(slot) = self.buf.get_mut(self.needed) {
+            *slot = match &self.registration {
+                Some(r) => r.apply_point(&self.frame.position),
+                None => self.frame.position,
+            };
+        }
+        self.needed += 1;
+    }
 }
 
 /// A plain frame and, for each of `K` derivative directions, its spatial twist
@@ -86,18 +187,20 @@ pub(crate) struct Tangents<T, const K: usize> {
 }
 
 /// `(a, b, d, b', d')` of the SE(3) exponential at `t2 = |w|^2` (see the
-/// [module doc](self)); the same series and closed forms as [`crate::se3::exp`].
+/// [module doc](self)); the same series and closed forms as [`exp_of`].
 #[inline(always)]
 fn coefficients<T: Real>(t2: T) -> [T; 5] {
     if t2 < c(SERIES_LIMIT_SQ) {
-        let x = Dual::<T, 1>::var(t2, 0);
-        let a = series(x, 1.0, &[6.0, 20.0, 42.0, 72.0, 110.0]);
-        let b = series(x, 0.5, &[12.0, 30.0, 56.0, 90.0, 132.0]);
-        let d = series(x, 1.0 / 6.0, &[20.0, 42.0, 72.0, 110.0, 156.0]);
-        [a.re, b.re, d.re, b.eps[0], d.eps[0]]
+        [
+            SINC.value(t2),
+            VERSINE.value(t2),
+            SIN_DEFECT.value(t2),
+            VERSINE.derivative(t2),
+            SIN_DEFECT.derivative(t2),
+        ]
     } else {
         let t = t2.sqrt();
-        let (s, co) = crate::se3::sin_cos(t);
+        let (s, co) = sin_cos(t);
         let a = s / t;
         let b = (T::one() - co) / t2;
         let d = (t - s) / (t2 * t);
@@ -232,6 +335,18 @@ impl<T: Real, const K: usize> Pose<T, Dual<T, K>> for Tangents<T, K> {
             let (x, y) = (row[0], row[1]);
             row[0] = x * co.re + y * si.re;
             row[1] = y * co.re - x * si.re;
+        }
+    }
+
+    #[inline(always)]
+    fn rotate_y(&mut self, co: Dual<T, K>, si: Dual<T, K>) {
+        let delta: [T; K] = core::array::from_fn(|k| co.re * si.eps[k] - si.re * co.eps[k]);
+        self.add_turn([self.r[0][1], self.r[1][1], self.r[2][1]], &delta);
+        // R <- R Ry: columns x' = c x - s z, z' = s x + c z
+        for row in self.r.iter_mut() {
+            let (x, z) = (row[0], row[2]);
+            row[0] = x * co.re - z * si.re;
+            row[2] = x * si.re + z * co.re;
         }
     }
 

@@ -468,6 +468,12 @@ impl<T: Real, const N: usize> Robot<T, N> {
         &self.tubes
     }
 
+    /// Each tube's value of `f`, outermost first (the tubes are not copied).
+    #[inline(always)]
+    pub(crate) fn each<U>(&self, f: impl Fn(&Tube<T>) -> U) -> [U; N] {
+        core::array::from_fn(|i| f(&self.tubes[i]))
+    }
+
     /// Clearance between tube `i` and tube `i + 1` (0-based), mm:
     /// `inner_diameter(i) - outer_diameter(i + 1)`; `None` past the innermost tube.
     ///
