@@ -8,9 +8,9 @@
 //!
 //! The truth is printed on stderr; `ctr-cli diagnose` is meant to find it blind.
 
-use ctr_analysis::formats::{Clearance, Latency, RobotSpec};
 use ctr_analysis::simulate::ModelSpec;
 use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
+use ctr_formats::{Clearance, Latency, RobotSpec};
 use std::path::Path;
 
 /// The concealed kink, deg, and the relative angle where it peaks, deg.

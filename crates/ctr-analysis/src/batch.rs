@@ -7,19 +7,18 @@
 //! solved by one worker with a fresh core [`Solver`](ctr_core::Solver) that warm-starts
 //! every row from the previous rows of the same chunk, exactly as calling
 //! `Solver::solve` row by row over that chunk would. Workers take chunks from a shared
-//! counter; the results are handed back in input order ([`for_each_chunk`]), so the
+//! counter; the results are handed back in input order ([`for_each_chunk`](ctr_formats::parallel::for_each_chunk)), so the
 //! output is bit for bit the same for 1 or 64 threads. Warm start changes a converged
 //! result only below the Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but
 //! the fixed chunking makes even those last bits reproducible.
 
-use crate::ik::{Ik, IkResult, IkTarget};
+use crate::ik::{Ik, IkResult};
 use crate::model::{FkModel, ModelError};
-use crate::robot::{AnyRobot, FkResult};
+use crate::robot::Kinematics;
 use ctr_core::{JointError, Model, SolveError};
-use std::collections::BTreeMap;
+use ctr_formats::parallel::{for_each_chunk, Progress};
+use ctr_formats::{AnyRobot, FkResult, IkTarget};
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc;
 
 /// Default rows per warm-started chunk.
 pub const WARM_CHUNK_ROWS: usize = 32;
@@ -46,32 +45,6 @@ impl Default for BatchOptions {
     }
 }
 
-/// Receives progress from a batch; called from worker threads.
-pub trait Progress: Sync {
-    /// The batch starts with `rows` rows.
-    fn start(&self, rows: usize) {
-        let _ = rows;
-    }
-    /// `rows` more rows are done.
-    fn advance(&self, rows: usize) {
-        let _ = rows;
-    }
-    /// The batch is done.
-    fn finish(&self) {}
-}
-
-/// No progress reporting.
-impl Progress for () {}
-
-/// The number of worker threads `threads` stands for (0 = all available cores).
-pub fn resolve_threads(threads: usize) -> usize {
-    if threads > 0 {
-        threads
-    } else {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    }
-}
-
 /// Solves every row of `joints` (row after row, `2 * robot.n_tubes()` values each in
 /// file order `s1_mm, theta1_deg, ...`) and returns one result per row, in order.
 ///
@@ -79,7 +52,8 @@ pub fn resolve_threads(threads: usize) -> usize {
 /// If `joints.len()` is not a multiple of `2 * robot.n_tubes()`.
 ///
 /// ```
-/// use ctr_analysis::{batch::{batch_fk, BatchOptions}, AnyRobot};
+/// use ctr_analysis::batch::{batch_fk, BatchOptions};
+/// use ctr_formats::AnyRobot;
 /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
 /// let robot = AnyRobot::new(&[t]).unwrap();
 /// let rows = [10.0, 0.0, 20.0, 0.0, 30.0, 90.0];
@@ -134,8 +108,9 @@ pub fn batch_fk(
 /// time per row.
 ///
 /// ```
-/// use ctr_analysis::{batch::{batch_fk, batch_fk_model, BatchOptions}, model::FkModel, AnyRobot};
-/// use ctr_analysis::formats::Effects;
+/// use ctr_analysis::{batch::{batch_fk, batch_fk_model, BatchOptions}, model::FkModel};
+/// use ctr_formats::AnyRobot;
+/// use ctr_formats::Effects;
 /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
 /// let robot = AnyRobot::new(&[t]).unwrap();
 /// let rows = [10.0, 0.0, 20.0, 0.0, 30.0, 90.0];
@@ -193,100 +168,6 @@ pub fn batch_fk_model(
     Ok(out)
 }
 
-/// Runs `work` over the rows `0..rows` in chunks of `chunk_rows` consecutive rows
-/// (boundaries at multiples of `chunk_rows`; at least 1) on `threads` workers (0 = all
-/// cores), and hands every chunk's result to `consume` on the calling thread, in chunk
-/// order, as soon as it and all chunks before it are done.
-///
-/// Each worker builds its own state with `init` and passes it to `work` for every
-/// chunk it takes; for results independent of the thread count, `work`'s result must
-/// depend only on the chunk (not on the state's history). When `consume` returns
-/// `false`, no further chunks are started and none are consumed. `progress` hears of
-/// every chunk done.
-pub fn for_each_chunk<S, T, I, W, C>(
-    rows: usize,
-    chunk_rows: usize,
-    threads: usize,
-    progress: &dyn Progress,
-    init: I,
-    work: W,
-    mut consume: C,
-) where
-    T: Send,
-    I: Fn() -> S + Sync,
-    W: Fn(&mut S, Range<usize>) -> T + Sync,
-    C: FnMut(Range<usize>, T) -> bool,
-{
-    let chunk = chunk_rows.max(1);
-    let chunks = rows.div_ceil(chunk);
-    let range = |k: usize| k * chunk..((k + 1) * chunk).min(rows);
-    let threads = resolve_threads(threads).min(chunks).max(1);
-    progress.start(rows);
-    if threads == 1 {
-        let mut state = init();
-        for k in 0..chunks {
-            let r = range(k);
-            let t = work(&mut state, r.clone());
-            progress.advance(r.len());
-            if !consume(r, t) {
-                break;
-            }
-        }
-        progress.finish();
-        return;
-    }
-    let next = AtomicUsize::new(0);
-    let stop = AtomicBool::new(false);
-    std::thread::scope(|s| {
-        let (tx, rx) = mpsc::channel::<(usize, T)>();
-        for _ in 0..threads {
-            let tx = tx.clone();
-            let (next, stop, init, work) = (&next, &stop, &init, &work);
-            s.spawn(move || {
-                let mut state = init();
-                loop {
-                    let k = next.fetch_add(1, Ordering::Relaxed);
-                    if k >= chunks || stop.load(Ordering::Relaxed) {
-                        break;
-                    }
-                    let r = range(k);
-                    let len = r.len();
-                    let t = work(&mut state, r);
-                    progress.advance(len);
-                    if tx.send((k, t)).is_err() {
-                        break;
-                    }
-                }
-            });
-        }
-        drop(tx);
-        let mut pending = BTreeMap::new();
-        let mut want = 0;
-        // a worker that panics drops its sender: `recv` fails once all are gone and
-        // the scope re-raises the panic
-        while want < chunks {
-            let t = match pending.remove(&want) {
-                Some(t) => t,
-                None => match rx.recv() {
-                    Ok((k, t)) => {
-                        pending.insert(k, t);
-                        continue;
-                    }
-                    Err(_) => break,
-                },
-            };
-            if !consume(range(want), t) {
-                stop.store(true, Ordering::Relaxed);
-                break;
-            }
-            want += 1;
-        }
-        // unblock the workers and let them finish
-        drop(rx);
-    });
-    progress.finish();
-}
-
 /// Rows per chunk of [`batch_ik`].
 pub const IK_CHUNK_ROWS: usize = 32;
 
@@ -313,7 +194,7 @@ impl Default for IkBatchOptions {
 }
 
 /// Solves every target with `ik` (cloned for each worker) and hands the results to
-/// `consume` chunk by chunk, in order, on the calling thread (as [`for_each_chunk`];
+/// `consume` chunk by chunk, in order, on the calling thread (as [`for_each_chunk`](ctr_formats::parallel::for_each_chunk);
 /// `consume` returning `false` stops the batch).
 ///
 /// Warm (`options.warm`), the rows are a trajectory: each row starts from the
@@ -338,8 +219,9 @@ impl Default for IkBatchOptions {
 ///
 /// ```
 /// use ctr_analysis::batch::{batch_ik, IkBatchOptions};
-/// use ctr_analysis::formats::RobotSpec;
-/// use ctr_analysis::ik::{Ik, IkOptions, IkTarget};
+/// use ctr_formats::RobotSpec;
+/// use ctr_analysis::ik::{Ik, IkOptions};
+/// use ctr_formats::IkTarget;
 /// let spec = RobotSpec::from_toml_str(r#"
 /// [[tube]]
 /// outer_diameter_mm = 1.2

@@ -9,16 +9,14 @@
 //! output into place. Any error before the rename leaves an existing output untouched
 //! (the temporary file is removed); standard output is written only at the end.
 
-use crate::batch::{batch_ik, for_each_chunk, IkBatchOptions, Progress, WARM_CHUNK_ROWS};
-use crate::error::{Error, ErrorKind, Location};
-use crate::formats::targets::write_ik_row;
-use crate::formats::tips::{write_header, write_tip_row, Carried};
-use crate::formats::{
-    ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable,
-};
+use crate::batch::{batch_ik, IkBatchOptions, WARM_CHUNK_ROWS};
 use crate::ik::{Ik, IkOptions, IkStatus};
 use crate::model::{FkModel, ModelError};
 use ctr_core::{Model, SolveError, Status};
+use ctr_formats::parallel::{for_each_chunk, Progress};
+use ctr_formats::{ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable};
+use ctr_formats::{write_header, write_ik_row, write_tip_row, Carried, IkRow};
+use ctr_formats::{Error, ErrorKind, Location};
 use std::io::{Read, Write};
 use std::path::PathBuf;
 
@@ -507,7 +505,7 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
         spec.limits.as_deref(),
         job.options,
     )
-    .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(e)))?;
+    .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(Box::new(e))))?;
     let table = {
         let (name, bytes) = read_input(&job.targets)?;
         TargetTable::from_bytes(bytes, &name, job.position_only, job.threads)?
@@ -543,13 +541,14 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
                 });
             }
             let joints = ik.to_file_units(&r.q);
-            write_ik_row(
-                &mut text,
-                table.carried(row, &columns.carried),
-                &joints,
-                r,
-                pose,
-            );
+            let out = IkRow {
+                joints: &joints,
+                tip: &r.tip,
+                residual_mm: r.residual_mm,
+                orientation_residual_rad: r.orientation_residual_rad,
+                status: r.status.name(),
+            };
+            write_ik_row(&mut text, table.carried(row, &columns.carried), &out, pose);
         }
         match sink.write(&text) {
             Ok(()) => true,

@@ -10,7 +10,8 @@
 //! writes, and solves the inverse problem on top of the core's forward kinematics.
 //!
 //! ```
-//! use ctr_analysis::formats::RobotSpec;
+//! use ctr_analysis::Kinematics;
+//! use ctr_formats::RobotSpec;
 //! let spec = RobotSpec::from_toml_str(r#"
 //! [[tube]]
 //! outer_diameter_mm = 1.2
@@ -29,8 +30,6 @@
 
 pub mod batch;
 pub mod diagnose;
-mod error;
-pub mod formats;
 pub mod ik;
 pub mod job;
 pub mod model;
@@ -39,5 +38,4 @@ pub mod simulate;
 pub mod synth;
 pub mod timeline;
 
-pub use error::{status_name, Error, ErrorKind, Location};
-pub use robot::{canonical_quaternion, joint_columns, AnyRobot, FkResult, FkSolver};
+pub use robot::{FkSolver, Kinematics};

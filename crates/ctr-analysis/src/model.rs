@@ -19,13 +19,15 @@
 //! A model without any effect table solves with [`AnyRobot::solver`] as before: the
 //! same numbers, bit for bit, as the core's `Solver::solve`.
 
-use crate::error::ErrorKind;
-use crate::formats::{Effects, RobotSpec};
-use crate::robot::joints_of;
-use crate::robot::{AnyRobot, FkResult, FkSolver};
+use crate::robot::{FkSolver, Kinematics};
 use crate::timeline::actual_joints;
+use crate::timeline::TimeEffects;
 use ctr_core::effects::Effects as CoreEffects;
 use ctr_core::{Gravity, Loads, Model, Request, Robot, SolveError, Solver};
+use ctr_formats::joints_of;
+use ctr_formats::ErrorKind;
+use ctr_formats::{AnyRobot, FkResult};
+use ctr_formats::{Effects, RobotSpec};
 use std::fmt;
 use std::ops::Range;
 
@@ -62,14 +64,15 @@ impl std::error::Error for ModelError {}
 /// A robot file's model, ready to solve rows.
 ///
 /// ```
-/// use ctr_analysis::{formats::RobotSpec, model::FkModel};
+/// use ctr_analysis::model::FkModel;
+/// use ctr_formats::RobotSpec;
 /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
 ///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n\
 ///     [model.effects.registration]\ntranslation_mm = [1.0, 2.0, 3.0]\n", "r.toml")?;
 /// let model = FkModel::from_spec(&spec, None).unwrap();
 /// let tip = model.solver().fk(&[50.0, 0.0]).unwrap();
 /// assert!((tip.position[2] - 53.0).abs() < 1e-12); // as the tracker sees it
-/// # Ok::<(), ctr_analysis::Error>(())
+/// # Ok::<(), ctr_formats::Error>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct FkModel {
@@ -113,7 +116,7 @@ impl FkModel {
                 *robot
             },
             model,
-            joint_offset: effects.time_effects(n).joint_offset,
+            joint_offset: TimeEffects::of(effects, n).joint_offset,
             plain: effects.is_empty(),
             effects: effects.clone(),
         })
@@ -173,7 +176,8 @@ impl FkModel {
     /// joint offsets added.
     ///
     /// ```
-    /// use ctr_analysis::{formats::{Effects, Friction}, model::FkModel, AnyRobot};
+    /// use ctr_analysis::model::FkModel;
+    /// use ctr_formats::{AnyRobot, Effects, Friction};
     /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33);
     /// let robot = AnyRobot::new(&[t, ctr_core::TubeParams::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)]).unwrap();
     /// let e = Effects { friction: Some(Friction { rotation_play_deg: vec![5.0], feed_play_mm: vec![] }), ..Default::default() };
@@ -195,7 +199,7 @@ impl FkModel {
                 return Err(ModelError::NeedsTime { effect });
             }
         }
-        let time = self.effects.time_effects(n);
+        let time = TimeEffects::of(&self.effects, n);
         let mut out = vec![0.0; joints.len()];
         for run in runs {
             let q: Vec<Vec<f64>> = run

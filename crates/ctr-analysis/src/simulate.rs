@@ -7,23 +7,25 @@
 //! present, by the core's Cosserat statics, else by the unloaded model with clearance
 //! kinks), and the tip is reported as measured (sensor offset, then registration).
 
-use crate::formats::{Effects, Recording, RobotSpec};
-use crate::robot::joints_of;
-use crate::robot::AnyRobot;
 use crate::timeline::actual_joints;
+use crate::timeline::TimeEffects;
 use ctr_core::{Gravity, JointError, Loads, Model, Request, Robot, SolveError, Solver, Status};
+use ctr_formats::joints_of;
+use ctr_formats::AnyRobot;
+use ctr_formats::{Effects, Recording, RobotSpec};
 use std::fmt;
 
 /// A robot, its base model and its effects: everything that predicts a recording.
 ///
 /// ```
-/// use ctr_analysis::{formats::RobotSpec, simulate::ModelSpec};
+/// use ctr_analysis::simulate::ModelSpec;
+/// use ctr_formats::RobotSpec;
 /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
 ///     length_mm = 260.0\ncurved_length_mm = 90.0\ncurvature_radius_mm = 100.0\n\
 ///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
 /// let m = ModelSpec::from_spec(&spec);
 /// assert!(m.effects.is_empty());
-/// # Ok::<(), ctr_analysis::Error>(())
+/// # Ok::<(), ctr_formats::Error>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelSpec {
@@ -91,14 +93,15 @@ pub struct Prediction {
 /// Simulates the runs `runs` (indices into `rec.runs`) of a recording.
 ///
 /// ```
-/// use ctr_analysis::{formats::{Recording, RobotSpec}, simulate::{predict, ModelSpec}};
+/// use ctr_analysis::simulate::{predict, ModelSpec};
+/// use ctr_formats::{Recording, RobotSpec};
 /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
 ///     length_mm = 260.0\ncurved_length_mm = 0.0\n\
 ///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
 /// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n50,0,0,0,50\n".as_bytes(), "rec.csv", 1)?;
 /// let pred = predict(&ModelSpec::from_spec(&spec), &rec, &[0]).unwrap();
 /// assert!((pred.p[0][2] - 50.0).abs() < 1e-12);
-/// # Ok::<(), ctr_analysis::Error>(())
+/// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Prediction, SimError> {
     let mut out = Prediction {
@@ -125,7 +128,7 @@ fn predict_n<const N: usize>(
 ) -> Result<(), SimError> {
     let effects = &model.effects;
     let core = effects.core_effects::<N>();
-    let time = effects.time_effects(N);
+    let time = TimeEffects::of(effects, N);
     let shifts = effects.needs_time() || time.joint_offset.iter().any(|&o| o != 0.0);
     let gravity = effects
         .gravity

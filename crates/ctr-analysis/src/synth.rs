@@ -21,7 +21,7 @@
 //! diagnose`.
 //!
 //! ```
-//! use ctr_analysis::formats::{Effects, Latency, RobotSpec};
+//! use ctr_formats::{Effects, Latency, RobotSpec};
 //! use ctr_analysis::simulate::ModelSpec;
 //! use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 //! let spec = RobotSpec::from_toml_str(r#"
@@ -59,9 +59,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::formats::{format_float, RecordedRow, Recording, Run};
-use crate::robot::joint_columns;
 use crate::simulate::{predict, ModelSpec, SimError};
+use ctr_formats::joint_columns;
+use ctr_formats::{format_float, RecordedRow, Recording, Run};
 use std::io::{self, Write};
 
 /// Tracker noise of the shared recordings, standard deviation per axis, mm.
@@ -588,7 +588,7 @@ pub fn generate(
 /// round-trip form ([`format_float`]): [`Recording::read`] gives the same rows back.
 ///
 /// ```
-/// use ctr_analysis::formats::Recording;
+/// use ctr_formats::Recording;
 /// let text = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n0,\"a, 1\",10,0,0,0,10\n0.5,\"a, 1\",11,0,0,0.1,11\n";
 /// let rec = Recording::read(text.as_bytes(), "rec.csv", 1)?;
 /// let mut out = Vec::new();

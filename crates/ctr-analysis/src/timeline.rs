@@ -34,6 +34,41 @@ pub struct TimeEffects {
 }
 
 impl TimeEffects {
+    /// The effects of a robot file's `[model.effects]` that act along a run's time
+    /// series, for a robot of `n` tubes.
+    ///
+    /// ```
+    /// use ctr_formats::{Effects, Latency};
+    /// let e = Effects { latency: Some(Latency { tau_s: 0.2 }), ..Default::default() };
+    /// assert_eq!(ctr_analysis::timeline::TimeEffects::of(&e, 2).latency_s, 0.2);
+    /// ```
+    pub fn of(effects: &ctr_formats::Effects, n: usize) -> Self {
+        let mut t = TimeEffects::none(n);
+        if let Some(o) = &effects.joint_offset {
+            for i in 0..n {
+                t.joint_offset[2 * i] = o.feed_mm.get(i).copied().unwrap_or(0.0);
+                t.joint_offset[2 * i + 1] = o.rotation_deg.get(i).copied().unwrap_or(0.0);
+            }
+        }
+        if let Some(l) = effects.latency {
+            t.latency_s = l.tau_s;
+        }
+        if let Some(f) = &effects.friction {
+            for (i, w) in f
+                .rotation_play_deg
+                .iter()
+                .enumerate()
+                .take(t.rotation_play_deg.len())
+            {
+                t.rotation_play_deg[i] = *w;
+            }
+            for (i, w) in f.feed_play_mm.iter().enumerate().take(n) {
+                t.feed_play_mm[i] = *w;
+            }
+        }
+        t
+    }
+
     /// No time effects for a robot of `n` tubes.
     ///
     /// ```

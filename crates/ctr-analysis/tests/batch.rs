@@ -1,10 +1,12 @@
 //! Batch forward kinematics: the same numbers as the core, whatever the thread count.
 
-use ctr_analysis::batch::{batch_fk, BatchOptions, Progress, WARM_CHUNK_ROWS};
-use ctr_analysis::formats::RobotSpec;
+use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
 use ctr_analysis::job::{run_fk, FkJob, Input, OnError, Output};
-use ctr_analysis::{canonical_quaternion, AnyRobot, ErrorKind, FkResult};
+use ctr_analysis::Kinematics;
 use ctr_core::{Joints, Model, Request, Robot, Solver, Status};
+use ctr_formats::parallel::Progress;
+use ctr_formats::RobotSpec;
+use ctr_formats::{canonical_quaternion, AnyRobot, ErrorKind, FkResult};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

@@ -18,13 +18,13 @@
 //! `ctr-cli diagnose` and `scripts/bench_diagnose.sh`).
 
 use ctr_analysis::diagnose::{diagnose, split, Diagnosis, Options};
-use ctr_analysis::formats::{
-    Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
-    RobotSpec, SensorOffset, Stiffness,
-};
 use ctr_analysis::simulate::{predict, ModelSpec};
 use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 use ctr_core::Model;
+use ctr_formats::{
+    Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
+    RobotSpec, SensorOffset, Stiffness,
+};
 use std::path::PathBuf;
 
 /// Tolerance on the held-out RMS after fitting, as a multiple of the noise floor.
@@ -679,6 +679,6 @@ fn generated_recording_round_trips_through_csv() {
     );
     let mut csv = Vec::new();
     write_csv(&a.recording, &mut csv).unwrap();
-    let back = ctr_analysis::formats::Recording::read(csv.as_slice(), &synth.file, 3).unwrap();
+    let back = ctr_formats::Recording::read(csv.as_slice(), &synth.file, 3).unwrap();
     assert_eq!(back, a.recording);
 }

@@ -1,11 +1,11 @@
 //! Robot TOML, joint CSV, tip CSV and atomic output.
 
-use ctr_analysis::formats::{
+use ctr_core::{Model, Status};
+use ctr_formats::{canonical_quaternion, AnyRobot, ErrorKind, FkResult};
+use ctr_formats::{
     format_float, tip_header, AtomicFile, Effects, JointTable, ModelKind, RobotFile, RobotSpec,
     TipWriter, TubeLimits,
 };
-use ctr_analysis::{canonical_quaternion, AnyRobot, ErrorKind, FkResult};
-use ctr_core::{Model, Status};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -210,7 +210,7 @@ fn limits_violation() {
     assert_eq!(l.violation(60.0, 90.0, 30.0), None);
 }
 
-fn read(csv: &str) -> Result<JointTable, ctr_analysis::Error> {
+fn read(csv: &str) -> Result<JointTable, ctr_formats::Error> {
     JointTable::read(csv.as_bytes(), "j.csv", &liu2023().robot)
 }
 

@@ -5,8 +5,10 @@
 //! unoptimized build runs [`ROUND_TRIPS`] targets per robot instead of 1,000 and skips
 //! the second round of seeds. The timing is `#[ignore]`d (`-- --ignored --nocapture`).
 
-use ctr_analysis::formats::{RobotSpec, TubeLimits};
-use ctr_analysis::ik::{Ik, IkOptions, IkResult, IkStatus, IkTarget};
+use ctr_analysis::ik::{Ik, IkOptions, IkResult, IkStatus};
+use ctr_analysis::Kinematics;
+use ctr_formats::IkTarget;
+use ctr_formats::{RobotSpec, TubeLimits};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

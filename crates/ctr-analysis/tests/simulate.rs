@@ -1,10 +1,10 @@
 //! The simulator with effects from a robot file reproduces the shared recordings down
 //! to their noise floor when given the concealed effect at its true value.
 
-use ctr_analysis::formats::{
+use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_formats::{
     Clearance, Effects, Friction, Gravity, Latency, Recording, Registration, RobotSpec,
 };
-use ctr_analysis::simulate::{predict, ModelSpec};
 use serde_json::Value;
 use std::path::PathBuf;
 

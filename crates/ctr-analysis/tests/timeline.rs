@@ -1,8 +1,9 @@
 //! `latency` and its composition with friction follow the conventions of the shared
 //! recordings: with the true values the model explains them down to the noise floor.
-use ctr_analysis::formats::RobotSpec;
 use ctr_analysis::timeline::{actual_joints, TimeEffects};
+use ctr_analysis::Kinematics;
 use ctr_core::Model;
+use ctr_formats::RobotSpec;
 use std::path::PathBuf;
 
 fn shared() -> PathBuf {

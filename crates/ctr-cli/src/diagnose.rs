@@ -5,8 +5,8 @@
 use crate::plots;
 use crate::Failure;
 use ctr_analysis::diagnose::{self, Diagnosis, EffectId, Holdout, Options};
-use ctr_analysis::formats::{AtomicFile, Recording, RobotSpec};
 use ctr_analysis::simulate::ModelSpec;
+use ctr_formats::{AtomicFile, Recording, RobotSpec};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -11,7 +11,7 @@ use crate::cli::{
     Connection, EmulateArgs, HomeArgs, HwCommand, Motion, MoveArgs, PingArgs, RunArgs,
 };
 use crate::Failure;
-use ctr_analysis::formats::{JointId, JointTable, RecordingWriter, RobotSpec};
+use ctr_formats::{JointId, JointTable, RecordingWriter, RobotSpec};
 use ctr_hw::actuation::{Actuation, JointActuation, JointKind};
 use ctr_hw::bus::{Bus, BusConfig, BusError};
 use ctr_hw::control_table as ct;
@@ -104,8 +104,8 @@ impl RigRobot {
                     name: j.name.clone(),
                     motor_id: j.motor_id,
                     kind: match j.kind {
-                        ctr_analysis::formats::ActuatorKind::Feed => JointKind::Feed,
-                        ctr_analysis::formats::ActuatorKind::Rotation => JointKind::Rotation,
+                        ctr_formats::ActuatorKind::Feed => JointKind::Feed,
+                        ctr_formats::ActuatorKind::Rotation => JointKind::Rotation,
                     },
                     ticks_per_rev: j.ticks_per_rev,
                     mm_per_rev: j.mm_per_rev,
@@ -307,11 +307,11 @@ fn parse_assignments(text: &str, n_tubes: usize) -> Result<Vec<f64>, Failure> {
         let id = JointId::parse(name)
             .or_else(|| {
                 JointId::parse(name.strip_suffix("_mm")?)
-                    .filter(|j| j.kind == ctr_analysis::formats::ActuatorKind::Feed)
+                    .filter(|j| j.kind == ctr_formats::ActuatorKind::Feed)
             })
             .or_else(|| {
                 JointId::parse(name.strip_suffix("_deg")?)
-                    .filter(|j| j.kind == ctr_analysis::formats::ActuatorKind::Rotation)
+                    .filter(|j| j.kind == ctr_formats::ActuatorKind::Rotation)
             })
             .filter(|j| j.tube <= n_tubes)
             .ok_or_else(|| {

@@ -15,8 +15,8 @@ use clap::Parser;
 use cli::{Cli, Command, FkArgs, IkArgs, ModelArg, OnErrorArg};
 use ctr_analysis::ik::IkOptions;
 use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, OnError, Output};
-use ctr_analysis::status_name;
 use ctr_core::Model;
+use ctr_formats::status_name;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

@@ -1,7 +1,7 @@
 //! A progress bar on stderr, shown only on a terminal and only once a job has run for
 //! a while.
 
-use ctr_analysis::batch::Progress;
+use ctr_formats::parallel::Progress;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -122,7 +122,7 @@ fn tips(csv_text: &str) -> Vec<[f64; 7]> {
 }
 
 fn params(spec_toml: &str) -> Vec<TubeParams<f64>> {
-    ctr_analysis::formats::RobotSpec::from_path(&repo(spec_toml))
+    ctr_formats::RobotSpec::from_path(&repo(spec_toml))
         .unwrap()
         .robot
         .tube_params()

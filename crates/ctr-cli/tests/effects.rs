@@ -4,11 +4,11 @@
 //! a fitted robot file written by `RobotSpec::to_toml` is used as is, and IK(FK(q))
 //! returns through the static effects.
 
-use ctr_analysis::formats::{
-    Clearance, Effects, JointOffset, Recording, Registration, RobotSpec, SensorOffset, Stiffness,
-};
 use ctr_analysis::simulate::{predict, ModelSpec};
 use ctr_core::Model;
+use ctr_formats::{
+    Clearance, Effects, JointOffset, Recording, Registration, RobotSpec, SensorOffset, Stiffness,
+};
 
 use std::path::{Path, PathBuf};
 
@@ -371,7 +371,7 @@ fn a_fitted_robot_file_round_trips_and_is_used_as_is() {
         stiffness: Some(Stiffness {
             factor: vec![1.1, 0.9],
         }),
-        precurvature: Some(ctr_analysis::formats::Precurvature {
+        precurvature: Some(ctr_formats::Precurvature {
             radius_factor: vec![1.05, 0.95],
         }),
         sensor_offset: Some(SensorOffset {

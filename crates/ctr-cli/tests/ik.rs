@@ -6,7 +6,7 @@
 //! An unoptimized build runs [`ROUND_TRIPS`] targets per robot instead of 1,000
 //! (`cargo test --release -p ctr-cli --test ik` runs them all, about a second).
 
-use ctr_analysis::formats::{RobotSpec, TubeLimits};
+use ctr_formats::{RobotSpec, TubeLimits};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

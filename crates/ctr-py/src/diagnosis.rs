@@ -12,7 +12,6 @@ use crate::errors;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::diagnose::{self as analysis, Diagnosis, EffectId, Holdout, Options};
-use ctr_analysis::formats;
 use ctr_analysis::simulate::ModelSpec;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -92,7 +91,7 @@ fn recording_arg<'a>(
     py: Python<'_>,
     obj: &'a Bound<'_, PyAny>,
     robot: &Robot,
-) -> PyResult<Cow<'a, formats::Recording>> {
+) -> PyResult<Cow<'a, ctr_formats::Recording>> {
     let n = robot.spec().robot.n_tubes();
     if let Ok(r) = obj.cast::<Recording>() {
         let rec = &r.get().rec;
@@ -135,7 +134,7 @@ impl Report {
         py: Python<'_>,
         d: &Diagnosis,
         robot: &Robot,
-        rec: &formats::Recording,
+        rec: &ctr_formats::Recording,
     ) -> PyResult<Self> {
         let json = serde_json::to_string(&d.report)
             .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
@@ -397,7 +396,7 @@ pub fn diagnose(
     };
     let rec = recording_arg(py, recording, robot)?;
     let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &formats::Recording = &rec;
+    let rec_ref: &ctr_formats::Recording = &rec;
     let d = py
         .detach(|| analysis::diagnose(&model, rec_ref, &options))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
@@ -444,7 +443,7 @@ pub fn calibrate(
     };
     let rec = recording_arg(py, recording, robot)?;
     let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &formats::Recording = &rec;
+    let rec_ref: &ctr_formats::Recording = &rec;
     let d = py
         .detach(|| analysis::calibrate(&model, rec_ref, &fit, &options))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
@@ -504,7 +503,7 @@ pub fn evaluate<'py>(
         .iter()
         .map(|r| ModelSpec::from_spec(r.get().spec()))
         .collect();
-    let rec_ref: &formats::Recording = &rec;
+    let rec_ref: &ctr_formats::Recording = &rec;
     let table = py
         .detach(|| analysis::evaluate(&models, rec_ref))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;

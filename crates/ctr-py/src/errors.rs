@@ -6,7 +6,7 @@
 //! `ctr-cli` prints after `error: `. Errors about arrays name the argument and row
 //! (`q[41]`) where the CLI names the file and line (`joints.csv:43`).
 
-use ctr_analysis::{Error, ErrorKind, Location};
+use ctr_formats::{Error, ErrorKind, Location};
 use pyo3::PyErr;
 
 pyo3::import_exception!(ctr_py._errors, InputError);

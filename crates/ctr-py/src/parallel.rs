@@ -6,7 +6,7 @@
 const BLOCK: usize = 4;
 
 /// `f(state, i)` for `i` in `0..n`, in order, on `threads` workers (0 = all cores),
-/// each with its own `state` from `init` (`ctr_analysis::batch::for_each_chunk` over
+/// each with its own `state` from `init` (`ctr_formats::parallel::for_each_chunk` over
 /// blocks of rows). The results are independent of the thread count as long as `f`'s
 /// result depends only on `i`.
 pub fn map<S, T, I, F>(n: usize, threads: usize, init: I, f: F) -> Vec<T>
@@ -16,7 +16,7 @@ where
     F: Fn(&mut S, usize) -> T + Sync,
 {
     let mut out = Vec::with_capacity(n);
-    ctr_analysis::batch::for_each_chunk(
+    ctr_formats::parallel::for_each_chunk(
         n,
         BLOCK,
         threads,

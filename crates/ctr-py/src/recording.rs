@@ -8,7 +8,7 @@
 use crate::arrays;
 use crate::errors;
 use crate::robot::Robot;
-use ctr_analysis::formats::{self, RecordedRow, Run};
+use ctr_formats::{RecordedRow, Run};
 use pyo3::prelude::*;
 use pyo3::types::{PyList, PySlice, PyTuple};
 use std::path::PathBuf;
@@ -19,7 +19,7 @@ const MAX_TUBES: usize = 4;
 /// A recording: commanded joints and measured tips, row by row, in runs.
 #[pyclass(frozen, module = "ctr_py", name = "Recording")]
 pub struct Recording {
-    pub(crate) rec: formats::Recording,
+    pub(crate) rec: ctr_formats::Recording,
 }
 
 /// What a pickled `Recording` holds: file, tube count, whether it has times and
@@ -92,8 +92,8 @@ fn tube_count(robot: Option<&Bound<'_, PyAny>>, n_tubes: Option<i64>) -> PyResul
 }
 
 /// Reads a recording file with `n` tubes' joint columns, as `ctr-cli` reads it.
-pub fn read(py: Python<'_>, path: &std::path::Path, n: usize) -> PyResult<formats::Recording> {
-    py.detach(|| formats::Recording::from_path(path, n))
+pub fn read(py: Python<'_>, path: &std::path::Path, n: usize) -> PyResult<ctr_formats::Recording> {
+    py.detach(|| ctr_formats::Recording::from_path(path, n))
         .map_err(|e| errors::to_py(&e))
 }
 
@@ -113,7 +113,7 @@ pub fn read_recording(
 }
 
 impl Recording {
-    fn check_state(s: &State) -> Result<formats::Recording, String> {
+    fn check_state(s: &State) -> Result<ctr_formats::Recording, String> {
         let (file, n_tubes, has_time, has_force, lines, t_s, q, p, quaternion, force, runs) = s;
         let (n, m) = (*n_tubes, lines.len());
         if !(1..=MAX_TUBES).contains(&n) {
@@ -155,7 +155,7 @@ impl Recording {
                 });
             }
         }
-        Ok(formats::Recording {
+        Ok(ctr_formats::Recording {
             file: file.clone(),
             n_tubes: n,
             rows,
@@ -331,6 +331,6 @@ impl Recording {
     /// Joint column names in file order.
     #[getter]
     fn joint_columns(&self) -> Vec<String> {
-        ctr_analysis::joint_columns(self.rec.n_tubes)
+        ctr_formats::joint_columns(self.rec.n_tubes)
     }
 }

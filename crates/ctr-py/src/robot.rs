@@ -11,13 +11,14 @@ use crate::parallel;
 use ctr_analysis::batch::{
     batch_fk_model, batch_ik, BatchOptions, IkBatchOptions, IK_CHUNK_ROWS, WARM_CHUNK_ROWS,
 };
-use ctr_analysis::formats::RobotSpec;
-use ctr_analysis::ik::{Ik, IkError, IkOptions, IkTarget};
+use ctr_analysis::ik::{Ik, IkError, IkOptions};
 use ctr_analysis::model::{FkModel, ModelError};
-use ctr_analysis::{status_name, AnyRobot, Error, ErrorKind, Location};
 use ctr_core::{
     JointError, Joints, Model, Request, Robot as CoreRobot, SolveError, Solver, Status,
 };
+use ctr_formats::IkTarget;
+use ctr_formats::RobotSpec;
+use ctr_formats::{status_name, AnyRobot, Error, ErrorKind, Location};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use pyo3::prelude::*;
 use pyo3::types::{PyTuple, PyType};

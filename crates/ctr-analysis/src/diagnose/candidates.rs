@@ -15,12 +15,12 @@
 //! | `latency` | delay of the robot behind its commands (s) |
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
 
-use crate::formats::{
+use crate::simulate::ModelSpec;
+use ctr_core::Model;
+use ctr_formats::{
     Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration, SensorOffset,
     Stiffness,
 };
-use crate::simulate::ModelSpec;
-use ctr_core::Model;
 use serde::Serialize;
 
 /// An effect id of the contract (`shared/spec/formats.md`).

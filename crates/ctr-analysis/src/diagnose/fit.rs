@@ -16,8 +16,8 @@
 //! bounds it is solved again as a box-constrained QP with clarabel.
 
 use super::candidates::EffectId;
-use crate::formats::Recording;
 use crate::simulate::{predict, ModelSpec};
+use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 
 /// A fit problem: which effects' parameters move, on which rows.
@@ -63,7 +63,7 @@ impl Problem<'_> {
     fn write_block(&self, b: EffectId, m: &mut ModelSpec, x: &[f64]) {
         match self.table(b) {
             Some(k) => {
-                m.effects.clearance = Some(crate::formats::Clearance {
+                m.effects.clearance = Some(ctr_formats::Clearance {
                     max_deflection_deg: vec![],
                     peak_deg: vec![],
                     table_deg: x.chunks(k).map(<[f64]>::to_vec).collect(),

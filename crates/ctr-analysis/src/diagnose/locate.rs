@@ -13,7 +13,7 @@
 //!   loop that opens when the motion reverses);
 //! - position in the workspace: `e = a + B p` (p the modelled tip: a frame mismatch).
 
-use crate::formats::Recording;
+use ctr_formats::Recording;
 use serde::Serialize;
 
 /// One located pattern of an error.

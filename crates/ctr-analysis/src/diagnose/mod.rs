@@ -30,8 +30,8 @@ pub mod locate;
 pub use candidates::EffectId;
 pub use locate::Statement;
 
-use crate::formats::{Recording, RobotSpec};
 use crate::simulate::{predict, ModelSpec};
+use ctr_formats::{Recording, RobotSpec};
 use fit::Problem;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -705,7 +705,8 @@ struct Best {
 /// Diagnoses `model` against `rec`.
 ///
 /// ```no_run
-/// use ctr_analysis::{diagnose::{diagnose, Options}, formats::{Recording, RobotSpec}, simulate::ModelSpec};
+/// use ctr_analysis::{diagnose::{diagnose, Options}, simulate::ModelSpec};
+/// use ctr_formats::{Recording, RobotSpec};
 /// use std::path::Path;
 /// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
 /// let rec = Recording::from_path(Path::new("rec.csv"), spec.robot.n_tubes())?;
@@ -725,7 +726,7 @@ pub fn diagnose(
     let (e0, baseline) = (&start.e0, start.baseline);
     let n = model.robot.n_tubes();
     let huber = start.huber_mm();
-    let threads = crate::batch::resolve_threads(opt.threads);
+    let threads = ctr_formats::parallel::resolve_threads(opt.threads);
     let period = sample_period(rec);
     let n_obs = (3 * fit_rows.len()) as f64;
 
@@ -1101,7 +1102,8 @@ fn explain(c: EffectId, m: &ModelSpec) -> String {
 /// finding per effect (before: the user model; after: all fitted).
 ///
 /// ```no_run
-/// use ctr_analysis::{diagnose::{calibrate, EffectId, Options}, formats::{Recording, RobotSpec}, simulate::ModelSpec};
+/// use ctr_analysis::{diagnose::{calibrate, EffectId, Options}, simulate::ModelSpec};
+/// use ctr_formats::{Recording, RobotSpec};
 /// use std::path::Path;
 /// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
 /// let rec = Recording::from_path(Path::new("weights.csv"), spec.robot.n_tubes())?;
@@ -1135,7 +1137,7 @@ pub fn calibrate(
         runs: start.all_runs.clone(),
         rows: start.fit_rows.clone(),
         huber_mm: start.huber_mm(),
-        threads: crate::batch::resolve_threads(opt.threads),
+        threads: ctr_formats::parallel::resolve_threads(opt.threads),
         clearance_table: opt.clearance_table,
     };
     let period = sample_period(rec);
@@ -1225,7 +1227,8 @@ pub struct RunErrors {
 /// Mean and largest tip error per run (and over all rows, last) for each model.
 ///
 /// ```
-/// use ctr_analysis::{diagnose::evaluate, formats::{Recording, RobotSpec}, simulate::ModelSpec};
+/// use ctr_analysis::{diagnose::evaluate, simulate::ModelSpec};
+/// use ctr_formats::{Recording, RobotSpec};
 /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
 ///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
 /// let rec = Recording::read("run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\na,50,0,0,0,51\n".as_bytes(), "rec.csv", 1)?;
@@ -1233,7 +1236,7 @@ pub struct RunErrors {
 /// assert_eq!(table[0].run, "a");
 /// assert!((table[0].mean_mm[0] - 1.0).abs() < 1e-12);
 /// assert_eq!(table.last().unwrap().run, "all");
-/// # Ok::<(), ctr_analysis::Error>(())
+/// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn evaluate(models: &[ModelSpec], rec: &Recording) -> Result<Vec<RunErrors>, DiagnoseError> {
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();

@@ -303,7 +303,7 @@ impl super::Ik {
     /// use ctr_analysis::ik::{Ik, IkOptions};
     /// use ctr_core::{Model, TubeParams};
     /// let t = TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
-    /// let robot = ctr_analysis::AnyRobot::new(&[t]).unwrap();
+    /// let robot = ctr_formats::AnyRobot::new(&[t]).unwrap();
     /// let options = IkOptions { seed_samples: 0, ..Default::default() };
     /// let ik = Ik::new(&robot, Model::Torsion, None, options).unwrap();
     /// let j = ik.tip_jacobian(&[50.0, 30.0]).unwrap();
@@ -398,7 +398,7 @@ mod tests {
         let pinned = JointLimits::new(
             &[160.0, 220.0, 280.0],
             Some(&[
-                crate::formats::TubeLimits {
+                ctr_formats::TubeLimits {
                     s_mm: Some([30.0, 30.0]),
                     ..Default::default()
                 },

@@ -13,7 +13,7 @@
 //! narrower range is a hard bound. A tube without a rotation range is periodic over
 //! `[-pi, pi]`.
 
-use crate::formats::TubeLimits;
+use ctr_formats::TubeLimits;
 use std::f64::consts::{PI, TAU};
 
 /// A rotation range in radians.
@@ -96,7 +96,7 @@ impl JointLimits {
     /// `[limits]` section (one entry per tube).
     ///
     /// ```
-    /// use ctr_analysis::formats::TubeLimits;
+    /// use ctr_formats::TubeLimits;
     /// use ctr_analysis::ik::JointLimits;
     /// let t = TubeLimits { increment_mm: Some([10.0, 50.0]), ..Default::default() };
     /// let l = JointLimits::new(&[160.0, 220.0], Some(&[t, t])).unwrap();

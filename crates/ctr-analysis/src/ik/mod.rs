@@ -55,8 +55,9 @@
 //! is never farther than the closest of 20,000 random points of the workspace.
 //!
 //! ```
-//! use ctr_analysis::formats::{RobotSpec, TubeLimits};
-//! use ctr_analysis::ik::{Ik, IkOptions, IkStatus, IkTarget};
+//! use ctr_formats::{RobotSpec, TubeLimits};
+//! use ctr_analysis::ik::{Ik, IkOptions, IkStatus};
+//! use ctr_formats::IkTarget;
 //! let mut spec = RobotSpec::from_toml_str(r#"
 //! [[tube]]
 //! outer_diameter_mm = 1.8
@@ -95,51 +96,16 @@ mod qp;
 pub use fk::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 pub use limits::{JointLimits, LimitsError, RotationRange};
 
-use crate::formats::{Effects, RobotSpec, TubeLimits};
 use crate::model::FkModel;
-use crate::robot::AnyRobot;
 use ctr_core::{Frame, Model, Robot};
+use ctr_formats::AnyRobot;
+use ctr_formats::{Effects, IkTarget, RobotSpec, TubeLimits};
 use fk::{log_so3, tip_jacobian, CoreFk, Jacobian, TipFk, MAX_JOINTS};
-use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{SMatrix, SVector, Vector3, Vector6};
 
 type Square = SMatrix<f64, MAX_JOINTS, MAX_JOINTS>;
 type Joint = SVector<f64, MAX_JOINTS>;
 use qp::StepQp;
-
-/// What the tip should reach, in W.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IkTarget {
-    /// Tip position, mm.
-    pub position: Vector3<f64>,
-    /// Tip orientation (tube n's material frame at its tip); `None`: position only.
-    pub orientation: Option<UnitQuaternion<f64>>,
-}
-
-impl IkTarget {
-    /// A position-only target, mm.
-    pub fn position(p: [f64; 3]) -> Self {
-        IkTarget {
-            position: Vector3::from(p),
-            orientation: None,
-        }
-    }
-
-    /// A full pose: position (mm) and orientation.
-    pub fn pose(p: [f64; 3], orientation: UnitQuaternion<f64>) -> Self {
-        IkTarget {
-            position: Vector3::from(p),
-            orientation: Some(orientation),
-        }
-    }
-
-    /// The pose of a tip frame.
-    pub fn frame(tip: &Frame<f64>) -> Self {
-        IkTarget {
-            position: tip.position,
-            orientation: Some(tip.orientation()),
-        }
-    }
-}
 
 /// How a solve ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -456,7 +422,7 @@ impl Ik {
         let limits = JointLimits::new(&lengths, limits)?;
         fn core<const N: usize>(r: &Robot<f64, N>, model: Model, e: &Effects) -> Box<dyn TipFk> {
             let mut effects = e.core_effects::<N>();
-            let offsets = e.time_effects(N).joint_offset;
+            let offsets = crate::timeline::TimeEffects::of(e, N).joint_offset;
             for i in 0..N {
                 effects.feed_offset_mm[i] = offsets[2 * i];
                 effects.rotation_offset_rad[i] = offsets[2 * i + 1].to_radians();

@@ -7,9 +7,9 @@ use super::csvout::write_float;
 use super::table::{read_all, read_path, Columns, Table};
 use super::tips::{write_carried, Carried};
 use crate::error::{Error, ErrorKind, Location};
-use crate::ik::{IkResult, IkTarget};
 use crate::robot::{canonical_quaternion, joint_columns};
-use nalgebra::{Quaternion, UnitQuaternion};
+use ctr_core::Frame;
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use std::io::Read;
 use std::path::Path;
 
@@ -22,6 +22,61 @@ pub const ORIENTATION_COLUMNS: [&str; 4] = ["qw", "qx", "qy", "qz"];
 
 /// How far from 1 a target quaternion's norm may be (it is then normalised).
 pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
+/// What the tip should reach, in W.
+///
+/// ```
+/// let t = ctr_formats::IkTarget::position([1.0, 2.0, 3.0]);
+/// assert!(t.orientation.is_none());
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IkTarget {
+    /// Tip position, mm.
+    pub position: Vector3<f64>,
+    /// Tip orientation (tube n's material frame at its tip); `None`: position only.
+    pub orientation: Option<UnitQuaternion<f64>>,
+}
+
+impl IkTarget {
+    /// A position-only target, mm.
+    pub fn position(p: [f64; 3]) -> Self {
+        IkTarget {
+            position: Vector3::from(p),
+            orientation: None,
+        }
+    }
+
+    /// A full pose: position (mm) and orientation.
+    pub fn pose(p: [f64; 3], orientation: UnitQuaternion<f64>) -> Self {
+        IkTarget {
+            position: Vector3::from(p),
+            orientation: Some(orientation),
+        }
+    }
+
+    /// The pose of a tip frame.
+    pub fn frame(tip: &Frame<f64>) -> Self {
+        IkTarget {
+            position: tip.position,
+            orientation: Some(tip.orientation()),
+        }
+    }
+}
+
+/// What an IK output row adds to the carried input columns.
+#[derive(Clone, Copy, Debug)]
+pub struct IkRow<'a> {
+    /// The joints, file units (mm, degrees).
+    pub joints: &'a [f64],
+    /// The tip reached.
+    pub tip: &'a Frame<f64>,
+    /// Distance from the tip to the target position, mm.
+    pub residual_mm: f64,
+    /// Angle between the tip and target orientations, rad (`None`: position only).
+    pub orientation_residual_rad: Option<f64>,
+    /// The status's name.
+    pub status: &'a str,
+}
 
 /// An IK target file read and checked: every row has a finite position and, when the
 /// file has the orientation columns, a unit quaternion. The raw fields of every row are
@@ -36,7 +91,7 @@ impl TargetTable {
     /// orientation columns, if any, are not read (position targets).
     ///
     /// ```
-    /// use ctr_analysis::formats::TargetTable;
+    /// use ctr_formats::TargetTable;
     /// let csv = "label,x_mm,y_mm,z_mm\na,1,2,90\nb,1,2,nan\n";
     /// let err = TargetTable::read(csv.as_bytes(), "t.csv", false).unwrap_err();
     /// assert_eq!(err.to_string(), "t.csv:3: column z_mm: \"nan\" is not a finite number");
@@ -139,7 +194,7 @@ impl TargetTable {
     }
 
     /// Row `row`'s fields at the indices `keep` (increasing).
-    pub(crate) fn carried<'a>(
+    pub fn carried<'a>(
         &'a self,
         row: usize,
         keep: &'a [usize],
@@ -169,7 +224,7 @@ impl TargetTable {
 /// reached_qy,reached_qz],residual_mm[,orientation_residual_deg],status`
 ///
 /// ```
-/// let c = ctr_analysis::formats::ik_columns(2, false);
+/// let c = ctr_formats::ik_columns(2, false);
 /// assert_eq!(c.join(","), "s1_mm,theta1_deg,s2_mm,theta2_deg,reached_x_mm,reached_y_mm,reached_z_mm,residual_mm,status");
 /// ```
 pub fn ik_columns(n_tubes: usize, pose: bool) -> Vec<String> {
@@ -203,7 +258,7 @@ pub struct IkOutputColumns {
 /// reads the output.
 ///
 /// ```
-/// use ctr_analysis::formats::ik_output_columns;
+/// use ctr_formats::ik_output_columns;
 /// let input: Vec<String> = "label,s1_mm,theta1_deg,x_mm,y_mm,z_mm,qw,qx,qy,qz"
 ///     .split(',').map(String::from).collect();
 /// let c = ik_output_columns(&input, 1, false);
@@ -228,17 +283,16 @@ pub fn ik_output_columns(input: &[String], n_tubes: usize, pose: bool) -> IkOutp
     IkOutputColumns { carried, header }
 }
 
-/// Appends one IK output row: the carried input, the joints in file units
-/// (`joints_file`: mm, degrees), then the tip reached and the residuals of `r`.
-pub(crate) fn write_ik_row<'a, I: Iterator<Item = &'a str>>(
+/// Appends one IK output row: the carried input, then `r` (for pose targets with the
+/// tip's orientation and the orientation residual in degrees).
+pub fn write_ik_row<'a, I: Iterator<Item = &'a str>>(
     out: &mut Vec<u8>,
     input: Carried<'a, I>,
-    joints_file: &[f64],
-    r: &IkResult,
+    r: &IkRow<'_>,
     pose: bool,
 ) {
     write_carried(out, input);
-    for v in joints_file {
+    for v in r.joints {
         write_float(out, *v);
         out.push(b',');
     }
@@ -266,6 +320,6 @@ pub(crate) fn write_ik_row<'a, I: Iterator<Item = &'a str>>(
         );
         out.push(b',');
     }
-    out.extend_from_slice(r.status.name().as_bytes());
+    out.extend_from_slice(r.status.as_bytes());
     out.push(b'\n');
 }

@@ -197,7 +197,7 @@ impl TubeLimits {
     /// `s_prev` is the enclosing tube's feed (0 for tube 1).
     ///
     /// ```
-    /// use ctr_analysis::formats::TubeLimits;
+    /// use ctr_formats::TubeLimits;
     /// let l = TubeLimits { s_mm: Some([20.0, 70.0]), increment_mm: None, theta_deg: None };
     /// assert_eq!(l.violation(10.0, 0.0, 0.0), Some(("s_mm", 10.0)));
     /// assert_eq!(l.violation(30.0, 0.0, 0.0), None);
@@ -383,7 +383,7 @@ impl RobotSpec {
     /// ```
     /// let text = "[[tube]]\nouter_diameter_mm = 1.8\ninner_diameter_mm = 1.9\nlength_mm = 100.0\n\
     ///             curved_length_mm = 50.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n";
-    /// let err = ctr_analysis::formats::RobotSpec::from_toml_str(text, "r.toml").unwrap_err();
+    /// let err = ctr_formats::RobotSpec::from_toml_str(text, "r.toml").unwrap_err();
     /// assert_eq!(err.to_string(), "r.toml:2:21: tube 1: outer_diameter_mm = 1.8 must be larger than inner_diameter_mm = 1.9");
     /// ```
     pub fn from_toml_str(text: &str, file: &str) -> Result<RobotSpec, Error> {

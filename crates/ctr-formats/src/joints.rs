@@ -19,7 +19,7 @@ impl JointTable {
     /// Reads CSV from `reader`; `file` names it in errors.
     ///
     /// ```
-    /// use ctr_analysis::{formats::JointTable, AnyRobot};
+    /// use ctr_formats::{AnyRobot, JointTable};
     /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33);
     /// let robot = AnyRobot::new(&[t]).unwrap();
     /// let csv = "label,s1_mm,theta1_deg\na,10,0\nb,20,abc\n";
@@ -121,7 +121,7 @@ impl JointTable {
 
     /// Data row `row`'s fields as CSV text, when it can be copied as it was (see
     /// `Table::plain_line`).
-    pub(crate) fn plain_line(&self, row: usize) -> Option<&str> {
+    pub fn plain_line(&self, row: usize) -> Option<&str> {
         self.table.plain_line(row)
     }
 

@@ -15,9 +15,9 @@ pub const STATUS_COLUMNS: [&str; 2] = ["status", "residual_per_mm"];
 /// with `with_status`). Refuses an input column whose name (trimmed) the output adds.
 ///
 /// ```
-/// let h = ctr_analysis::formats::tip_header(&["label".into(), "s1_mm".into()], false).unwrap();
+/// let h = ctr_formats::tip_header(&["label".into(), "s1_mm".into()], false).unwrap();
 /// assert_eq!(h.join(","), "label,s1_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz");
-/// assert!(ctr_analysis::formats::tip_header(&["z_mm".into()], false).is_err());
+/// assert!(ctr_formats::tip_header(&["z_mm".into()], false).is_err());
 /// ```
 pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, ErrorKind> {
     let added: Vec<&str> = TIP_COLUMNS
@@ -46,7 +46,7 @@ pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, Er
 ///
 /// ```
 /// let v = 0.1 + 0.2;
-/// assert_eq!(ctr_analysis::formats::format_float(v).parse::<f64>().unwrap(), v);
+/// assert_eq!(ctr_formats::format_float(v).parse::<f64>().unwrap(), v);
 /// ```
 pub fn format_float(v: f64) -> String {
     let mut out = Vec::with_capacity(24);
@@ -56,12 +56,12 @@ pub fn format_float(v: f64) -> String {
 }
 
 /// Appends the CSV header line `header` to `out`.
-pub(crate) fn write_header(out: &mut Vec<u8>, header: &[String]) {
+pub fn write_header(out: &mut Vec<u8>, header: &[String]) {
     write_record(out, header.iter().map(String::as_str));
 }
 
 /// The input columns of an output row.
-pub(crate) enum Carried<'a, I: Iterator<Item = &'a str>> {
+pub enum Carried<'a, I: Iterator<Item = &'a str>> {
     /// Fields to write (quoted as needed).
     Fields(I),
     /// A line of fields already in CSV form (from `plain_line`).
@@ -89,7 +89,7 @@ pub(crate) fn write_carried<'a, I: Iterator<Item = &'a str>>(
 
 /// Appends one tip row to `out`: the input's raw fields, then the pose (and, with
 /// `with_status`, status and residual).
-pub(crate) fn write_tip_row<'a, I: Iterator<Item = &'a str>>(
+pub fn write_tip_row<'a, I: Iterator<Item = &'a str>>(
     out: &mut Vec<u8>,
     input: Carried<'a, I>,
     fk: &FkResult,

@@ -39,13 +39,12 @@
 //! ```
 //!
 //! The order in which they act on a row: joint offsets, then latency along the run,
-//! then friction on the delayed path ([`crate::timeline`]); the mechanics with the
+//! then friction on the delayed path (`ctr_analysis::timeline`); the mechanics with the
 //! scaled tubes, clearance kinks and gravity; then the sensor offset and the
 //! registration (`shared/spec/formats.md`'s conventions, those of
 //! `shared/data/recordings/*.truth.json`). Clearance and gravity together are not
 //! modelled (the loaded solver has no kinks) and are refused.
 
-use crate::timeline::TimeEffects;
 use ctr_core::effects::{
     ClearanceProfile, Effects as CoreEffects, Registration as CoreRegistration,
     CLEARANCE_TABLE_CAPACITY,
@@ -55,7 +54,7 @@ use serde::{Deserialize, Serialize};
 /// `[model.effects]`: one optional table per effect id of the formats contract.
 ///
 /// ```
-/// use ctr_analysis::formats::{Effects, Latency};
+/// use ctr_formats::{Effects, Latency};
 /// let e = Effects { latency: Some(Latency { tau_s: 0.1 }), ..Default::default() };
 /// assert_eq!(e.present(), ["latency"]);
 /// ```
@@ -204,7 +203,7 @@ impl Registration {
     /// From a rotation vector (axis times angle, degrees) and a translation.
     ///
     /// ```
-    /// let r = ctr_analysis::formats::Registration::from_rotation_vector([0.0, 0.0, 2.0], [1.0, 0.0, 0.0]);
+    /// let r = ctr_formats::Registration::from_rotation_vector([0.0, 0.0, 2.0], [1.0, 0.0, 0.0]);
     /// assert_eq!(r.rotation_deg, 2.0);
     /// assert_eq!(r.rotation_axis, [0.0, 0.0, 1.0]);
     /// ```
@@ -236,7 +235,7 @@ impl Registration {
 }
 
 /// What is wrong with an effect table: the key path below `model.effects` and a message.
-pub(crate) type EffectProblem = (Vec<&'static str>, String);
+pub type EffectProblem = (Vec<&'static str>, String);
 
 fn check_len(
     effect: &'static str,
@@ -296,7 +295,7 @@ impl Effects {
     /// The ids of the effects present, in the order they act.
     ///
     /// ```
-    /// assert!(ctr_analysis::formats::Effects::default().present().is_empty());
+    /// assert!(ctr_formats::Effects::default().present().is_empty());
     /// ```
     pub fn present(&self) -> Vec<&'static str> {
         let Effects {
@@ -345,7 +344,7 @@ impl Effects {
     /// Checks every table against a robot of `n` tubes (lengths, finite and positive
     /// values, what the tube densities allow). `has_density` tells whether every tube has
     /// a density (gravity needs it).
-    pub(crate) fn check(&self, n: usize, has_density: bool) -> Result<(), EffectProblem> {
+    pub fn check(&self, n: usize, has_density: bool) -> Result<(), EffectProblem> {
         let pairs = n.saturating_sub(1);
         if let Some(o) = &self.joint_offset {
             if !o.feed_mm.is_empty() {
@@ -477,45 +476,11 @@ impl Effects {
         Ok(())
     }
 
-    /// The effects that act along a run's time series, for [`crate::timeline`].
-    ///
-    /// ```
-    /// use ctr_analysis::formats::{Effects, Latency};
-    /// let e = Effects { latency: Some(Latency { tau_s: 0.2 }), ..Default::default() };
-    /// assert_eq!(e.time_effects(2).latency_s, 0.2);
-    /// ```
-    pub fn time_effects(&self, n: usize) -> TimeEffects {
-        let mut t = TimeEffects::none(n);
-        if let Some(o) = &self.joint_offset {
-            for i in 0..n {
-                t.joint_offset[2 * i] = o.feed_mm.get(i).copied().unwrap_or(0.0);
-                t.joint_offset[2 * i + 1] = o.rotation_deg.get(i).copied().unwrap_or(0.0);
-            }
-        }
-        if let Some(l) = self.latency {
-            t.latency_s = l.tau_s;
-        }
-        if let Some(f) = &self.friction {
-            for (i, w) in f
-                .rotation_play_deg
-                .iter()
-                .enumerate()
-                .take(t.rotation_play_deg.len())
-            {
-                t.rotation_play_deg[i] = *w;
-            }
-            for (i, w) in f.feed_play_mm.iter().enumerate().take(n) {
-                t.feed_play_mm[i] = *w;
-            }
-        }
-        t
-    }
-
     /// The core's per-solve effects: clearance kinks, sensor offset, registration (the
     /// joint offsets are applied along the time series instead, so they are zero here).
     ///
     /// ```
-    /// use ctr_analysis::formats::{Effects, SensorOffset};
+    /// use ctr_formats::{Effects, SensorOffset};
     /// let e = Effects { sensor_offset: Some(SensorOffset { offset_mm: [0.0, 0.0, 2.0] }), ..Default::default() };
     /// assert_eq!(e.core_effects::<2>().sensor_offset_mm, [0.0, 0.0, 2.0]);
     /// ```

@@ -21,7 +21,7 @@ pub const RECORDING_TIP_COLUMNS: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
 /// `t_s,run,s1_mm,theta1_deg,...,s1_read_mm,theta1_read_deg,...,x_mm,y_mm,z_mm`.
 ///
 /// ```
-/// let h = ctr_analysis::formats::recording_header(1).join(",");
+/// let h = ctr_formats::recording_header(1).join(",");
 /// assert_eq!(h, "t_s,run,s1_mm,theta1_deg,s1_read_mm,theta1_read_deg,x_mm,y_mm,z_mm");
 /// ```
 pub fn recording_header(n_tubes: usize) -> Vec<String> {
@@ -37,13 +37,13 @@ pub fn recording_header(n_tubes: usize) -> Vec<String> {
 /// whole line followed by a flush.
 ///
 /// ```
-/// use ctr_analysis::formats::RecordingWriter;
+/// use ctr_formats::RecordingWriter;
 /// let mut rec = RecordingWriter::new(Vec::new(), "rec.csv", 1)?;
 /// rec.write_row(0.5, "sweep, 1", &[10.0, 90.0], &[10.0, 89.912109375])?;
 /// assert_eq!(rec.rows(), 1);
 /// let text = String::from_utf8(rec.into_inner()).unwrap();
 /// assert_eq!(text.lines().nth(1), Some("0.5,\"sweep, 1\",10,90,10,89.912109375,,,"));
-/// # Ok::<(), ctr_analysis::Error>(())
+/// # Ok::<(), ctr_formats::Error>(())
 /// ```
 #[derive(Debug)]
 pub struct RecordingWriter<W: Write> {
@@ -166,7 +166,7 @@ impl RecordingWriter<File> {
     /// not a directory itself (for checking before a run starts).
     ///
     /// ```
-    /// use ctr_analysis::formats::RecordingWriter;
+    /// use ctr_formats::RecordingWriter;
     /// let err = RecordingWriter::check_path("/nonexistent/rec.csv".as_ref()).unwrap_err();
     /// assert_eq!(err.to_string(), "/nonexistent/rec.csv: directory /nonexistent does not exist");
     /// ```

@@ -94,7 +94,7 @@ impl ActuatedJoint {
     /// without `mm_per_rev` (refused by validation).
     ///
     /// ```
-    /// use ctr_analysis::formats::{ActuatedJoint, ActuatorKind};
+    /// use ctr_formats::{ActuatedJoint, ActuatorKind};
     /// let j = ActuatedJoint {
     ///     name: "s1".into(), motor_id: 1, kind: ActuatorKind::Feed, ticks_per_rev: 4096,
     ///     mm_per_rev: Some(8.0), gear_ratio: None, direction: 1, zero_offset_ticks: 0,
@@ -131,7 +131,7 @@ impl JointId {
     /// Parses an actuation joint name, `s{i}` or `theta{i}` (i >= 1, no leading zero).
     ///
     /// ```
-    /// use ctr_analysis::formats::{ActuatorKind, JointId};
+    /// use ctr_formats::{ActuatorKind, JointId};
     /// assert_eq!(JointId::parse("theta2"), Some(JointId { tube: 2, kind: ActuatorKind::Rotation }));
     /// assert_eq!(JointId::parse("s1_mm"), None);
     /// assert_eq!(JointId::parse("s01"), None);
@@ -165,7 +165,7 @@ impl JointId {
     /// The joint column it drives: `s2_mm`, `theta2_deg`.
     ///
     /// ```
-    /// use ctr_analysis::formats::JointId;
+    /// use ctr_formats::JointId;
     /// assert_eq!(JointId::parse("s2").unwrap().column(), "s2_mm");
     /// assert_eq!(JointId::parse("theta1").unwrap().read_column(), "theta1_read_deg");
     /// ```
@@ -198,7 +198,7 @@ impl JointId {
     /// The joints of an n-tube robot in joint-vector order.
     ///
     /// ```
-    /// let names: Vec<String> = ctr_analysis::formats::JointId::all(2).map(|j| j.name()).collect();
+    /// let names: Vec<String> = ctr_formats::JointId::all(2).map(|j| j.name()).collect();
     /// assert_eq!(names, ["s1", "theta1", "s2", "theta2"]);
     /// ```
     pub fn all(n_tubes: usize) -> impl Iterator<Item = JointId> {
@@ -393,7 +393,7 @@ pub(crate) fn validate(
 
 #[cfg(test)]
 mod tests {
-    use crate::formats::{RobotFile, RobotSpec};
+    use crate::{RobotFile, RobotSpec};
 
     const BASE: &str = r#"name = "base"
 

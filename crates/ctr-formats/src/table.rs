@@ -301,7 +301,7 @@ impl Table {
         let mut values = Vec::with_capacity(table.rows.len() * width);
         let mut first_error = None;
         let t = &table;
-        crate::batch::for_each_chunk(
+        crate::parallel::for_each_chunk(
             t.rows.len(),
             PARSE_CHUNK_ROWS,
             threads,

@@ -45,7 +45,7 @@ pub struct Run {
 /// A whole recording.
 ///
 /// ```
-/// use ctr_analysis::formats::Recording;
+/// use ctr_formats::Recording;
 /// let csv = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n0,a,10,0,0,0,10\n1,a,11,0,0,0,11\n0,b,12,0,0,0,12\n";
 /// let rec = Recording::read(csv.as_bytes(), "rec.csv", 1)?;
 /// assert_eq!(rec.runs.len(), 2);
@@ -53,7 +53,7 @@ pub struct Run {
 /// let bad = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n1,a,10,0,0,0,10\n0,a,11,0,0,0,11\n";
 /// let e = Recording::read(bad.as_bytes(), "rec.csv", 1).unwrap_err();
 /// assert_eq!(e.to_string(), "rec.csv:3: column t_s: 0 is earlier than the previous row's 1 in run a; rows of a run must be in time order");
-/// # Ok::<(), ctr_analysis::Error>(())
+/// # Ok::<(), ctr_formats::Error>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Recording {

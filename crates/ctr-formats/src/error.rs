@@ -173,9 +173,10 @@ pub enum ErrorKind {
         norm: f64,
     },
     /// The inverse kinematics cannot be set up for the robot (its limits leave no
-    /// joint vector) or with the options given.
+    /// joint vector) or with the options given (the solver's own error, kept as the
+    /// source).
     #[error("{0}")]
-    Ik(crate::ik::IkError),
+    Ik(Box<dyn std::error::Error + Send + Sync>),
     /// A row has a different number of fields than the header.
     #[error("row has {found} field{}, the header has {expected}", if *.found == 1 { "" } else { "s" })]
     RaggedRow {
@@ -256,7 +257,7 @@ impl std::error::Error for Error {
 /// `iteration_limit`, `diverged`.
 ///
 /// ```
-/// assert_eq!(ctr_analysis::status_name(ctr_core::Status::IterationLimit), "iteration_limit");
+/// assert_eq!(ctr_formats::status_name(ctr_core::Status::IterationLimit), "iteration_limit");
 /// ```
 pub fn status_name(status: Status) -> &'static str {
     match status {

@@ -1,5 +1,13 @@
+//! # ctr-formats
+//!
 //! File formats: the robot TOML, the joint CSV, the tip CSV, the IK target and joint
-//! CSVs, the rig's recording CSV, atomic output.
+//! CSVs, the rig's recording CSV, the actuation schema, atomic output; the located
+//! errors every reader and writer gives ([`Error`]); the robot whose tube count a file
+//! decides ([`AnyRobot`]); and the project's one thread pool ([`parallel`]), which the
+//! readers are the first to use.
+//!
+//! A leaf above `ctr-core`: the analysis, the diagnosis, the servo rig (`ctr-hw`) and
+//! both front ends read and write through it, and it depends on none of them.
 //!
 //! The contract is `shared/spec/formats.md`; everything it describes is read and written
 //! as it says. This module adds three optional sections to the robot TOML and columns to
@@ -134,21 +142,27 @@
 //!
 //! # Errors
 //!
-//! Every error is one line: `file[:line[:column]]: message` (see [`crate::Error`]).
+//! Every error is one line: `file[:line[:column]]: message` (see [`Error`]).
 //! CSV lines count the header as line 1; TOML positions come from the parser's span or
 //! point at the offending value.
 
 mod actuation;
 mod csvout;
 mod effects;
+mod error;
 mod joints;
 mod output;
+pub mod parallel;
 mod recorded;
 mod recording;
-pub(crate) mod robot_file;
+mod robot;
+mod robot_file;
 mod table;
-pub(crate) mod targets;
-pub(crate) mod tips;
+mod targets;
+mod tips;
+
+pub use error::{status_name, Error, ErrorKind, Location};
+pub use robot::{canonical_quaternion, joint_columns, joints_of, AnyRobot, FkResult};
 
 pub use actuation::{
     ActuatedJoint, ActuationSection, ActuatorKind, JointId, DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
@@ -165,7 +179,10 @@ pub use robot_file::{
     LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile, TubeLimits,
 };
 pub use targets::{
-    ik_columns, ik_output_columns, IkOutputColumns, TargetTable, ORIENTATION_COLUMNS,
-    QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
+    ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow, IkTarget, TargetTable,
+    ORIENTATION_COLUMNS, QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
 };
-pub use tips::{format_float, tip_header, TipWriter, STATUS_COLUMNS, TIP_COLUMNS};
+pub use tips::{
+    format_float, tip_header, write_header, write_tip_row, Carried, TipWriter, STATUS_COLUMNS,
+    TIP_COLUMNS,
+};

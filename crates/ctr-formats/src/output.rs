@@ -42,7 +42,7 @@ impl AtomicFile {
     /// exists and it is not a directory).
     ///
     /// ```
-    /// use ctr_analysis::formats::AtomicFile;
+    /// use ctr_formats::AtomicFile;
     /// let err = AtomicFile::check_path("/nonexistent/out.json".as_ref()).unwrap_err();
     /// assert_eq!(err.to_string(), "/nonexistent/out.json: directory /nonexistent does not exist");
     /// ```
