@@ -814,5 +814,13 @@ def test_backbone_with_effects(tmp_path):
     clearance = ctr_py.Robot.from_toml(
         liu_with(tmp_path, "[model.effects.clearance]\nmax_deflection_deg = [2.5]\npeak_deg = [205.0]\n", "c.toml")
     )
-    with pytest.raises(ctr_py.InputError, match=r"model\.effects\.clearance: backbone solves the static mechanics only"):
-        clearance.backbone(q)
+    # the kinks are in the one solve request: the backbone ends at fk's tip
+    b = clearance.backbone(q)
+    p, _ = clearance.fk(q)
+    assert np.allclose(b[-1], p, rtol=0, atol=1e-9)
+    assert not np.allclose(b[-1], ctr_py.Robot.from_toml(liu_with(tmp_path, "", "plain.toml")).fk(q)[0])
+    friction = ctr_py.Robot.from_toml(
+        liu_with(tmp_path, "[model.effects.friction]\nrotation_play_deg = [4.0]\n", "f.toml")
+    )
+    with pytest.raises(ctr_py.InputError, match=r"model\.effects\.friction: backbone solves one joint vector"):
+        friction.backbone(q)

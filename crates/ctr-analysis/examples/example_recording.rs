@@ -8,7 +8,7 @@
 //!
 //! The truth is printed on stderr; `ctr-cli diagnose` is meant to find it blind.
 
-use ctr_analysis::simulate::ModelSpec;
+use ctr_analysis::model::ModelSpec;
 use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 use ctr_formats::{Clearance, Latency, RobotSpec};
 use std::path::Path;

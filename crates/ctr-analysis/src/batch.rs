@@ -1,33 +1,28 @@
-//! Forward kinematics over many rows, in parallel, with results independent of the
-//! thread count; and the chunked parallel runner that the file jobs (`ctr-cli fk`,
-//! `ctr-cli ik`) are built on.
+//! Forward and inverse kinematics over many rows, in parallel on the one thread pool
+//! ([`ctr_formats::parallel`]), with results independent of the thread count.
 //!
 //! The rows are cut into chunks of [`BatchOptions::chunk_rows`] consecutive rows
 //! (boundaries at multiples of `chunk_rows`, whatever the thread count). Each chunk is
-//! solved by one worker with a fresh core [`Solver`](ctr_core::Solver) that warm-starts
-//! every row from the previous rows of the same chunk, exactly as calling
-//! `Solver::solve` row by row over that chunk would. Workers take chunks from a shared
-//! counter; the results are handed back in input order ([`for_each_chunk`](ctr_formats::parallel::for_each_chunk)), so the
-//! output is bit for bit the same for 1 or 64 threads. Warm start changes a converged
-//! result only below the Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but
-//! the fixed chunking makes even those last bits reproducible.
+//! solved by one worker with a fresh row solver that warm-starts every row from the
+//! previous rows of the same chunk ([`solve_rows`]). Workers take chunks from a shared
+//! counter; the results are handed back in input order, so the output is bit for bit
+//! the same for 1 or 64 threads. Warm start changes a converged result only below the
+//! Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but the fixed chunking
+//! makes even those last bits reproducible.
 
 use crate::ik::{Ik, IkResult};
-use crate::model::{FkModel, ModelError};
-use crate::robot::Kinematics;
-use ctr_core::{JointError, Model, SolveError};
+use crate::model::{ModelError, RowModel};
+use ctr_core::SolveError;
 use ctr_formats::parallel::{for_each_chunk, Progress};
-use ctr_formats::{AnyRobot, FkResult, IkTarget};
+use ctr_formats::{FkResult, IkTarget};
 use std::ops::Range;
 
 /// Default rows per warm-started chunk.
 pub const WARM_CHUNK_ROWS: usize = 32;
 
-/// How to run a batch.
+/// How to run a batch of forward kinematics.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BatchOptions {
-    /// The mechanics.
-    pub model: Model,
     /// Worker threads; 0 = all available cores.
     pub threads: usize,
     /// Rows per warm-started chunk (at least 1; 1 means every row is solved cold).
@@ -38,89 +33,80 @@ pub struct BatchOptions {
 impl Default for BatchOptions {
     fn default() -> Self {
         BatchOptions {
-            model: Model::Torsion,
             threads: 0,
             chunk_rows: WARM_CHUNK_ROWS,
         }
     }
 }
 
-/// Solves every row of `joints` (row after row, `2 * robot.n_tubes()` values each in
-/// file order `s1_mm, theta1_deg, ...`) and returns one result per row, in order.
+/// The joints of a batch, row after row (`2 n` values a row, file order and units).
+#[derive(Clone, Copy, Debug)]
+pub enum Rows<'a> {
+    /// Commanded joints: the row model adds the joint offsets.
+    Commanded(&'a [f64]),
+    /// Actual joints ([`RowModel::actual_joints`]: offsets and time effects applied).
+    Actual(&'a [f64]),
+}
+
+/// Solves the rows `range` of `rows` in order, each warm-started from the rows before
+/// it in its chunk of `chunk_rows` consecutive rows (boundaries at multiples of
+/// `chunk_rows`; at least 1), handing each result to `each` (which returns `false` to
+/// stop). Every forward-kinematics batch solves its rows this way (the CLI's file job,
+/// `ctr_py`, [`batch_fk`]), so the results depend on the chunk size and never on how
+/// the rows are shared out between threads.
 ///
 /// # Panics
-/// If `joints.len()` is not a multiple of `2 * robot.n_tubes()`.
+/// If a row is not `2 n` values or `range` is beyond the rows.
+pub fn solve_rows(
+    model: &RowModel,
+    rows: Rows<'_>,
+    range: Range<usize>,
+    chunk_rows: usize,
+    mut each: impl FnMut(usize, Result<FkResult, SolveError>) -> bool,
+) {
+    let width = 2 * model.robot().n_tubes();
+    let chunk = chunk_rows.max(1);
+    let mut solver = model.solver();
+    for row in range.clone() {
+        if row % chunk == 0 && row != range.start {
+            solver = model.solver();
+        }
+        let r = row * width..(row + 1) * width;
+        let tip = match rows {
+            Rows::Commanded(j) => solver.fk(&j[r]),
+            Rows::Actual(a) => solver.fk_actual(&a[r], [0.0; 3]),
+        };
+        if !each(row, tip) {
+            return;
+        }
+    }
+}
+
+/// Solves every row of `joints` (row after row, `2 n` values each in file order
+/// `s1_mm, theta1_deg, ...`) with the row model (its effects included; see
+/// [`crate::model`]) in parallel, and returns one result per row, in order. With time
+/// effects ([`RowModel::needs_time`]) the rows are one run in order: `t_s` gives their
+/// times (non-decreasing; the caller checks), without them the row index stands for
+/// time (latency is then refused). The error of a row is `SolveError::Joint` when its
+/// (actual) joints are out of the robot's ranges.
+///
+/// # Panics
+/// If `joints.len()` is not a multiple of `2 n`, or `t_s` does not have one time per
+/// row.
 ///
 /// ```
 /// use ctr_analysis::batch::{batch_fk, BatchOptions};
+/// use ctr_analysis::model::ModelSpec;
 /// use ctr_formats::AnyRobot;
 /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-/// let robot = AnyRobot::new(&[t]).unwrap();
+/// let model = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows().unwrap();
 /// let rows = [10.0, 0.0, 20.0, 0.0, 30.0, 90.0];
-/// let one = batch_fk(&robot, &rows, &BatchOptions { threads: 1, ..Default::default() }, &());
-/// let two = batch_fk(&robot, &rows, &BatchOptions { threads: 2, ..Default::default() }, &());
+/// let one = batch_fk(&model, &rows, None, &BatchOptions { threads: 1, ..Default::default() }, &()).unwrap();
+/// let two = batch_fk(&model, &rows, None, &BatchOptions { threads: 2, ..Default::default() }, &()).unwrap();
 /// assert_eq!(one, two);
 /// ```
 pub fn batch_fk(
-    robot: &AnyRobot,
-    joints: &[f64],
-    options: &BatchOptions,
-    progress: &dyn Progress,
-) -> Vec<Result<FkResult, JointError>> {
-    let width = 2 * robot.n_tubes();
-    assert!(
-        joints.len().is_multiple_of(width),
-        "{} joint values do not make rows of {width}",
-        joints.len()
-    );
-    let rows = joints.len() / width;
-    let mut out = Vec::with_capacity(rows);
-    for_each_chunk(
-        rows,
-        options.chunk_rows,
-        options.threads,
-        progress,
-        || (),
-        |(), range| {
-            let mut solver = robot.solver();
-            range
-                .map(|row| solver.fk(&joints[row * width..(row + 1) * width], options.model))
-                .collect::<Vec<_>>()
-        },
-        |_, results| {
-            out.extend(results);
-            true
-        },
-    );
-    out
-}
-
-/// As [`batch_fk`], for a robot file's whole model (its effects included; see
-/// [`crate::model`]): `options.model` is not used (the model has its own). With time
-/// effects ([`FkModel::needs_time`]) the rows are one run in order: `t_s` gives their
-/// times (non-decreasing; the caller checks), without them the row index stands for
-/// time (latency is then refused). The actual joints of the run are found first, then
-/// the rows are solved in the same fixed chunks as [`batch_fk`]. The error of a row is
-/// `SolveError::Joint` when its (actual) joints are out of the robot's ranges.
-///
-/// # Panics
-/// If `joints.len()` is not a multiple of `2 * n_tubes`, or `t_s` does not have one
-/// time per row.
-///
-/// ```
-/// use ctr_analysis::{batch::{batch_fk, batch_fk_model, BatchOptions}, model::FkModel};
-/// use ctr_formats::AnyRobot;
-/// use ctr_formats::Effects;
-/// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-/// let robot = AnyRobot::new(&[t]).unwrap();
-/// let rows = [10.0, 0.0, 20.0, 0.0, 30.0, 90.0];
-/// let model = FkModel::new(&robot, ctr_core::Model::Torsion, &Effects::default()).unwrap();
-/// let with = batch_fk_model(&model, &rows, None, &BatchOptions::default(), &()).unwrap();
-/// let plain = batch_fk(&robot, &rows, &BatchOptions::default(), &());
-/// assert_eq!(with[2].unwrap(), plain[2].unwrap());
-/// ```
-pub fn batch_fk_model(
-    model: &FkModel,
+    model: &RowModel,
     joints: &[f64],
     t_s: Option<&[f64]>,
     options: &BatchOptions,
@@ -132,33 +118,33 @@ pub fn batch_fk_model(
         "{} joint values do not make rows of {width}",
         joints.len()
     );
-    let rows = joints.len() / width;
+    let n_rows = joints.len() / width;
     if let Some(t) = t_s {
-        assert_eq!(t.len(), rows, "one time per row");
+        assert_eq!(t.len(), n_rows, "one time per row");
     }
     let actual = if model.needs_time() {
-        Some(model.actual_joints(joints, t_s, std::slice::from_ref(&(0..rows)))?)
+        Some(model.actual_joints(joints, t_s, std::slice::from_ref(&(0..n_rows)))?)
     } else {
         None
     };
-    let mut out = Vec::with_capacity(rows);
+    let rows = match &actual {
+        Some(a) => Rows::Actual(a),
+        None => Rows::Commanded(joints),
+    };
+    let mut out = Vec::with_capacity(n_rows);
     for_each_chunk(
-        rows,
+        n_rows,
         options.chunk_rows,
         options.threads,
         progress,
         || (),
         |(), range| {
-            let mut solver = model.solver();
-            range
-                .map(|row| {
-                    let r = row * width..(row + 1) * width;
-                    match &actual {
-                        Some(a) => solver.fk_actual(&a[r]),
-                        None => solver.fk(&joints[r]),
-                    }
-                })
-                .collect::<Vec<_>>()
+            let mut results = Vec::with_capacity(range.len());
+            solve_rows(model, rows, range, options.chunk_rows, |_, r| {
+                results.push(r);
+                true
+            });
+            results
         },
         |_, results| {
             out.extend(results);

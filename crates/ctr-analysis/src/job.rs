@@ -9,9 +9,9 @@
 //! output into place. Any error before the rename leaves an existing output untouched
 //! (the temporary file is removed); standard output is written only at the end.
 
-use crate::batch::{batch_ik, IkBatchOptions, WARM_CHUNK_ROWS};
+use crate::batch::{batch_ik, solve_rows, IkBatchOptions, Rows, WARM_CHUNK_ROWS};
 use crate::ik::{Ik, IkOptions, IkStatus};
-use crate::model::{FkModel, ModelError};
+use crate::model::{ModelError, ModelSpec, RowModel};
 use ctr_core::{Model, SolveError, Status};
 use ctr_formats::parallel::{for_each_chunk, Progress};
 use ctr_formats::{ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable};
@@ -117,7 +117,7 @@ const UNIT_CHUNKS: usize = 16;
 
 /// Runs a job; see the module docs for the order of work.
 ///
-/// The robot file's whole model is solved ([`FkModel`]: `[model] kind`, or
+/// The robot file's whole model is solved ([`RowModel`]: `[model] kind`, or
 /// `job.model`, and every table of `[model.effects]`). With time effects (latency,
 /// friction with a non-zero play) the rows are time series: a `t_s` column gives their
 /// times, a `run` column cuts them into runs (contiguous rows with the same label; the
@@ -125,7 +125,11 @@ const UNIT_CHUNKS: usize = 16;
 /// row order stands for time, and latency is refused.
 pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> {
     let (robot_name, spec) = (input_name(&job.robot), read_robot(&job.robot)?);
-    let fkm = FkModel::from_spec(&spec, job.model).map_err(|e| model_error(&robot_name, e))?;
+    let fkm = {
+        let mut m = ModelSpec::from_spec(&spec);
+        m.model = job.model.unwrap_or(spec.model);
+        m.rows().map_err(|e| model_error(&robot_name, e))?
+    };
     let table = {
         let (name, bytes) = read_input(&job.joints)?;
         JointTable::from_bytes(bytes, &name, &spec.robot, job.threads)?
@@ -135,7 +139,6 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
     } else {
         None
     };
-    let width = 2 * spec.robot.n_tubes();
     let mark = job.on_error == OnError::Mark;
     let skip = job.on_error == OnError::Skip;
     let header = tip_header(table.header(), mark)
@@ -164,26 +167,22 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
         progress,
         || (),
         |(), rows| {
-            let mut solver = fkm.solver();
             let mut chunk = Chunk {
                 text: Vec::with_capacity(rows.len() * (table.header().len() * 12 + 180)),
                 written: 0,
                 failures: Vec::new(),
                 row_error: None,
             };
-            for row in rows {
-                if row % WARM_CHUNK_ROWS == 0 {
-                    solver = fkm.solver();
-                }
-                let solved = match &actual {
-                    Some(a) => solver.fk_actual(&a[row * width..(row + 1) * width]),
-                    None => solver.fk(table.joints(row)),
-                };
+            let joints = match &actual {
+                Some(a) => Rows::Actual(a),
+                None => Rows::Commanded(table.all_joints()),
+            };
+            solve_rows(&fkm, joints, rows, WARM_CHUNK_ROWS, |row, solved| {
                 let fk = match solved {
                     Ok(fk) => fk,
                     Err(e) => {
                         chunk.row_error = Some((row, e));
-                        break;
+                        return false;
                     }
                 };
                 if fk.status != Status::Converged {
@@ -193,7 +192,7 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                         residual_per_mm: fk.residual_per_mm,
                     });
                     if skip {
-                        continue;
+                        return true;
                     }
                 }
                 let carried = match table.plain_line(row) {
@@ -202,7 +201,8 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                 };
                 write_tip_row(&mut chunk.text, carried, &fk, mark);
                 chunk.written += 1;
-            }
+                true
+            });
             chunk
         },
         |_, chunk| {
@@ -290,7 +290,7 @@ fn model_error(robot: &str, e: ModelError) -> Error {
 /// The actual joints of a joint file's rows under the model's time effects: `t_s`
 /// (when the file has it) the rows' times, `run` (when it has it) their runs; see
 /// [`run_fk`].
-fn time_series(table: &JointTable, fkm: &FkModel, robot: &str) -> Result<Vec<f64>, Error> {
+fn time_series(table: &JointTable, fkm: &RowModel, robot: &str) -> Result<Vec<f64>, Error> {
     let file = table.file();
     let t_col = table.column("t_s");
     if t_col.is_none() {

@@ -1,16 +1,17 @@
-//! The std layer shared by the CLI and the Python wheel: file formats, batch forward
-//! kinematics and inverse kinematics (fitting and diagnosis will follow).
+//! The std layer shared by the CLI and the Python wheel: the row model, batches, the
+//! timeline of time effects, simulation of recordings, inverse kinematics, diagnosis.
 //!
-//! Data flows one way: files ([`formats`]) -> a validated robot ([`AnyRobot`], the
+//! Data flows one way: files ([`ctr_formats`]) -> a validated robot ([`AnyRobot`](ctr_formats::AnyRobot), the
 //! core's `Robot<f64, N>` for a tube count known at run time) and checked joints or
-//! targets -> core solves of the file's whole model ([`model`]: the robot, its `[model]
-//! kind` and `[model.effects]`; [`batch`], parallel, thread-count independent; [`ik`] for
-//! targets) -> tip or joint files. [`job`] strings these together for `ctr-cli fk` and
-//! `ctr-cli ik`. The forward numerics are the core's; this crate reads, dispatches and
-//! writes, and solves the inverse problem on top of the core's forward kinematics.
+//! targets -> core solves of the file's whole model ([`model`]: ONE row model, the
+//! robot, its `[model] kind` and `[model.effects]`; [`batch`] on the one thread pool,
+//! thread-count independent; [`simulate`] along recordings; [`ik`] for targets) -> tip
+//! or joint files. [`job`] strings these together for `ctr-cli fk` and `ctr-cli ik`.
+//! The forward numerics are the core's; this crate prepares rows for it, dispatches,
+//! and solves the inverse problem on top of the core's forward kinematics.
 //!
 //! ```
-//! use ctr_analysis::Kinematics;
+//! use ctr_analysis::model::ModelSpec;
 //! use ctr_formats::RobotSpec;
 //! let spec = RobotSpec::from_toml_str(r#"
 //! [[tube]]
@@ -22,7 +23,7 @@
 //! youngs_modulus_mpa = 58000.0
 //! poisson_ratio = 0.33
 //! "#, "robot.toml")?;
-//! let fk = spec.robot.fk(&[50.0, 0.0], spec.model)?;
+//! let fk = ModelSpec::from_spec(&spec).fk(&[50.0, 0.0])?;
 //! // an arc of radius 100 mm over 50 mm bends toward +x
 //! assert!((fk.position[0] - 100.0 * (1.0 - 0.5_f64.cos())).abs() < 1e-9);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -33,9 +34,6 @@ pub mod diagnose;
 pub mod ik;
 pub mod job;
 pub mod model;
-mod robot;
 pub mod simulate;
 pub mod synth;
 pub mod timeline;
-
-pub use robot::{FkSolver, Kinematics};

@@ -22,7 +22,7 @@
 //!
 //! ```
 //! use ctr_formats::{Effects, Latency, RobotSpec};
-//! use ctr_analysis::simulate::ModelSpec;
+//! use ctr_analysis::model::ModelSpec;
 //! use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 //! let spec = RobotSpec::from_toml_str(r#"
 //! [[tube]]
@@ -59,7 +59,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::simulate::{predict, ModelSpec, SimError};
+use crate::model::ModelSpec;
+use crate::simulate::{predict, SimError};
 use ctr_formats::joint_columns;
 use ctr_formats::{format_float, RecordedRow, Recording, Run};
 use std::io::{self, Write};

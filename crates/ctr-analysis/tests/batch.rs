@@ -2,7 +2,7 @@
 
 use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
 use ctr_analysis::job::{run_fk, FkJob, Input, OnError, Output};
-use ctr_analysis::Kinematics;
+use ctr_analysis::model::{ModelSpec, RowModel};
 use ctr_core::{Joints, Model, Request, Robot, Solver, Status};
 use ctr_formats::parallel::Progress;
 use ctr_formats::RobotSpec;
@@ -82,13 +82,18 @@ fn core_rows<const N: usize>(
         .collect()
 }
 
+/// The row model of `robot` under `model`, without effects.
+fn rows(robot: &AnyRobot, model: Model) -> RowModel {
+    ModelSpec::plain(robot, model).rows().unwrap()
+}
+
 fn batch(robot: &AnyRobot, joints: &[f64], model: Model, threads: usize) -> Vec<FkResult> {
     let options = BatchOptions {
-        model,
         threads,
         chunk_rows: WARM_CHUNK_ROWS,
     };
-    batch_fk(robot, joints, &options, &())
+    batch_fk(&rows(robot, model), joints, None, &options, &())
+        .unwrap()
         .into_iter()
         .map(Result::unwrap)
         .collect()
@@ -144,17 +149,23 @@ fn chunk_of_one_row_is_cold_solves() {
     let s = spec("liu2023");
     let joints = joint_rows(2, 40, 25.0, 45.0);
     let options = BatchOptions {
-        model: Model::Torsion,
         threads: 2,
         chunk_rows: 1,
     };
-    let got: Vec<FkResult> = batch_fk(&s.robot, &joints, &options, &())
-        .into_iter()
-        .map(Result::unwrap)
-        .collect();
+    let got: Vec<FkResult> = batch_fk(
+        &rows(&s.robot, Model::Torsion),
+        &joints,
+        None,
+        &options,
+        &(),
+    )
+    .unwrap()
+    .into_iter()
+    .map(Result::unwrap)
+    .collect();
     let cold: Vec<FkResult> = joints
         .chunks(4)
-        .map(|q| s.robot.fk(q, Model::Torsion).unwrap())
+        .map(|q| ModelSpec::plain(&s.robot, Model::Torsion).fk(q).unwrap())
         .collect();
     assert_eq!(got, cold);
     // warm and cold agree to well below a micrometre
@@ -172,7 +183,14 @@ fn invalid_rows_are_errors_in_place() {
     let joints = [
         30.0, 0.0, 80.0, 0.0, 40.0, 0.0, 30.0, 0.0, 30.0, 0.0, 90.0, 0.0,
     ];
-    let out = batch_fk(&s.robot, &joints, &BatchOptions::default(), &());
+    let out = batch_fk(
+        &rows(&s.robot, Model::Torsion),
+        &joints,
+        None,
+        &BatchOptions::default(),
+        &(),
+    )
+    .unwrap();
     assert!(out[0].is_ok() && out[2].is_ok());
     assert_eq!(
         out[1].unwrap_err().to_string(),
@@ -208,12 +226,15 @@ fn progress_sees_every_row() {
         threads: 2,
         ..Default::default()
     };
-    batch_fk(&s.robot, &joints, &options, &count);
+    let model = rows(&s.robot, Model::Torsion);
+    batch_fk(&model, &joints, None, &options, &count).unwrap();
     assert_eq!(count.started.load(Ordering::SeqCst), 77);
     assert_eq!(count.advanced.load(Ordering::SeqCst), 77);
     assert_eq!(count.finished.load(Ordering::SeqCst), 1);
     // and an empty batch is fine
-    assert!(batch_fk(&s.robot, &[], &options, &()).is_empty());
+    assert!(batch_fk(&model, &[], None, &options, &())
+        .unwrap()
+        .is_empty());
 }
 
 /// A robot that snaps (long transmissions) and rows where the torsion solve fails.

@@ -18,7 +18,8 @@
 //! `ctr-cli diagnose` and `scripts/bench_diagnose.sh`).
 
 use ctr_analysis::diagnose::{diagnose, split, Diagnosis, Options};
-use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
 use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 use ctr_core::Model;
 use ctr_formats::{

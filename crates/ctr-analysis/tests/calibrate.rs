@@ -2,7 +2,8 @@
 //! weights (the seed paper's identification, recording columns `fx_n,fy_n,fz_n`).
 
 use ctr_analysis::diagnose::{calibrate, EffectId, Holdout, Options};
-use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
 use ctr_formats::{Recording, RobotSpec, Stiffness};
 use std::fmt::Write;
 use std::path::PathBuf;

@@ -2,7 +2,7 @@
 //! `expected_findings` and a held-out RMS after fitting within 1.25 x its noise floor.
 
 use ctr_analysis::diagnose::{diagnose, Options};
-use ctr_analysis::simulate::ModelSpec;
+use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Recording, RobotSpec};
 use serde_json::Value;
 use std::path::PathBuf;

@@ -6,7 +6,7 @@
 //! the second round of seeds. The timing is `#[ignore]`d (`-- --ignored --nocapture`).
 
 use ctr_analysis::ik::{Ik, IkOptions, IkResult, IkStatus};
-use ctr_analysis::Kinematics;
+use ctr_analysis::model::ModelSpec;
 use ctr_formats::IkTarget;
 use ctr_formats::{RobotSpec, TubeLimits};
 use std::path::{Path, PathBuf};
@@ -102,7 +102,10 @@ fn assert_within_limits(spec: &RobotSpec, joints_file: &[f64]) {
 
 /// The tip position of file-unit joints by the plain core FK (default tolerances).
 fn fk_position(spec: &RobotSpec, joints_file: &[f64]) -> [f64; 3] {
-    spec.robot.fk(joints_file, spec.model).unwrap().position
+    ModelSpec::plain(&spec.robot, spec.model)
+        .fk(joints_file)
+        .unwrap()
+        .position
 }
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {

@@ -1,7 +1,8 @@
 //! The simulator with effects from a robot file reproduces the shared recordings down
 //! to their noise floor when given the concealed effect at its true value.
 
-use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
 use ctr_formats::{
     Clearance, Effects, Friction, Gravity, Latency, Recording, Registration, RobotSpec,
 };
@@ -110,4 +111,37 @@ fn true_effects_reach_the_noise_floor() {
             assert!(without > 1.5 * floor, "{id}");
         }
     }
+}
+
+/// A recorded tip force is a load, and the loaded mechanics model torsion: on the rigid
+/// model the row model refuses it (once it was solved silently with torsion instead),
+/// while the torsion model bends the tip by it, against the force.
+#[test]
+fn a_recorded_force_on_the_rigid_model_is_refused_not_solved_with_torsion() {
+    use ctr_analysis::simulate::SimError;
+    use ctr_core::{SolveError, Unsupported};
+    let spec = RobotSpec::from_toml_str(
+        "[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\nlength_mm = 260.0\n\
+         curved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n",
+        "r.toml",
+    )
+    .unwrap();
+    let rec = Recording::read(
+        "s1_mm,theta1_deg,x_mm,y_mm,z_mm,fx_n,fy_n,fz_n\n80,0,0,0,80,0.02,0,0\n".as_bytes(),
+        "rec.csv",
+        1,
+    )
+    .unwrap();
+    let mut model = ModelSpec::from_spec(&spec);
+    let pred = predict(&model, &rec, &[0]).unwrap();
+    // a straight tube pushed along +x bends toward +x
+    assert!(pred.p[0][0] > 0.1, "{:?}", pred.p[0]);
+    model.model = ctr_core::Model::Rigid;
+    assert_eq!(
+        predict(&model, &rec, &[0]),
+        Err(SimError::Load {
+            row: 0,
+            error: SolveError::Unsupported(Unsupported::LoadsOnRigid)
+        })
+    );
 }

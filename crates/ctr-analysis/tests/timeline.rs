@@ -1,7 +1,7 @@
 //! `latency` and its composition with friction follow the conventions of the shared
 //! recordings: with the true values the model explains them down to the noise floor.
+use ctr_analysis::model::ModelSpec;
 use ctr_analysis::timeline::{actual_joints, TimeEffects};
-use ctr_analysis::Kinematics;
 use ctr_core::Model;
 use ctr_formats::RobotSpec;
 use std::path::PathBuf;
@@ -65,7 +65,10 @@ fn rms(rec: &Rec, robot: &RobotSpec, effects: &TimeEffects) -> f64 {
     let (mut sum, mut count) = (0.0, 0usize);
     for (t, q, p) in &rec.runs {
         for (actual, measured) in actual_joints(t, q, effects).iter().zip(p) {
-            let tip = robot.robot.fk(actual, Model::Torsion).unwrap().position;
+            let tip = ModelSpec::plain(&robot.robot, Model::Torsion)
+                .fk(actual)
+                .unwrap()
+                .position;
             sum += (0..3).map(|k| (tip[k] - measured[k]).powi(2)).sum::<f64>();
             count += 1;
         }

@@ -5,7 +5,7 @@
 use crate::plots;
 use crate::Failure;
 use ctr_analysis::diagnose::{self, Diagnosis, EffectId, Holdout, Options};
-use ctr_analysis::simulate::ModelSpec;
+use ctr_analysis::model::ModelSpec;
 use ctr_formats::{AtomicFile, Recording, RobotSpec};
 use std::io::Write;
 use std::path::{Path, PathBuf};

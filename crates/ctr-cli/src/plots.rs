@@ -7,7 +7,8 @@
 //!   on the plane of W in which the measured path spreads most.
 
 use ctr_analysis::diagnose::Diagnosis;
-use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
 use plotters::prelude::*;
 use std::path::Path;

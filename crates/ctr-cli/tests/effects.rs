@@ -4,7 +4,8 @@
 //! a fitted robot file written by `RobotSpec::to_toml` is used as is, and IK(FK(q))
 //! returns through the static effects.
 
-use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
 use ctr_core::Model;
 use ctr_formats::{
     Clearance, Effects, JointOffset, Recording, Registration, RobotSpec, SensorOffset, Stiffness,

@@ -51,16 +51,37 @@ pub fn resolve_threads(threads: usize) -> usize {
 /// `f` of every item, in item order, on `threads` workers (0 = all cores), one item per
 /// chunk. A panic in `f` is raised again here.
 pub fn map<J: Sync, R: Send>(items: &[J], threads: usize, f: impl Fn(&J) -> R + Sync) -> Vec<R> {
-    let mut out = Vec::with_capacity(items.len());
+    map_rows(items.len(), 1, threads, || (), |(), i| f(&items[i]))
+}
+
+/// `f(state, i)` for every row `i` in `0..rows`, in order, on `threads` workers (0 = all
+/// cores) taking `block` rows at a time, each worker with its own `state` from `init`
+/// (scratch space, a solver to clone once). The results do not depend on the thread
+/// count as long as `f`'s result depends only on `i`.
+///
+/// ```
+/// use ctr_formats::parallel::map_rows;
+/// let one = map_rows(103, 4, 1, || 0u32, |calls, i| { *calls += 1; i * i });
+/// assert_eq!(one, map_rows(103, 4, 3, || 0u32, |_, i| i * i));
+/// assert_eq!(one[10], 100);
+/// ```
+pub fn map_rows<S, R: Send>(
+    rows: usize,
+    block: usize,
+    threads: usize,
+    init: impl Fn() -> S + Sync,
+    f: impl Fn(&mut S, usize) -> R + Sync,
+) -> Vec<R> {
+    let mut out = Vec::with_capacity(rows);
     for_each_chunk(
-        items.len(),
-        1,
+        rows,
+        block,
         threads,
         &(),
-        || (),
-        |(), range| f(&items[range.start]),
-        |_, r| {
-            out.push(r);
+        init,
+        |state, range| range.map(|i| f(state, i)).collect::<Vec<R>>(),
+        |_, results| {
+            out.extend(results);
             true
         },
     );

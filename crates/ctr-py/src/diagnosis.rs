@@ -12,7 +12,7 @@ use crate::errors;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::diagnose::{self as analysis, Diagnosis, EffectId, Holdout, Options};
-use ctr_analysis::simulate::ModelSpec;
+use ctr_analysis::model::ModelSpec;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use std::borrow::Cow;

@@ -22,7 +22,6 @@ use pyo3::prelude::*;
 mod arrays;
 mod diagnosis;
 mod errors;
-mod parallel;
 mod recording;
 mod robot;
 

@@ -15,7 +15,7 @@
 //! | `latency` | delay of the robot behind its commands (s) |
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
 
-use crate::simulate::ModelSpec;
+use crate::model::ModelSpec;
 use ctr_core::Model;
 use ctr_formats::{
     Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration, SensorOffset,

@@ -16,7 +16,8 @@
 //! bounds it is solved again as a box-constrained QP with clarabel.
 
 use super::candidates::EffectId;
-use crate::simulate::{predict, ModelSpec};
+use crate::model::ModelSpec;
+use crate::simulate::predict;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 

@@ -30,7 +30,8 @@ pub mod locate;
 pub use candidates::EffectId;
 pub use locate::Statement;
 
-use crate::simulate::{predict, ModelSpec};
+use crate::model::ModelSpec;
+use crate::simulate::predict;
 use ctr_formats::{Recording, RobotSpec};
 use fit::Problem;
 use serde::Serialize;
@@ -705,7 +706,7 @@ struct Best {
 /// Diagnoses `model` against `rec`.
 ///
 /// ```no_run
-/// use ctr_analysis::{diagnose::{diagnose, Options}, simulate::ModelSpec};
+/// use ctr_analysis::{diagnose::{diagnose, Options}, model::ModelSpec};
 /// use ctr_formats::{Recording, RobotSpec};
 /// use std::path::Path;
 /// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
@@ -1102,7 +1103,7 @@ fn explain(c: EffectId, m: &ModelSpec) -> String {
 /// finding per effect (before: the user model; after: all fitted).
 ///
 /// ```no_run
-/// use ctr_analysis::{diagnose::{calibrate, EffectId, Options}, simulate::ModelSpec};
+/// use ctr_analysis::{diagnose::{calibrate, EffectId, Options}, model::ModelSpec};
 /// use ctr_formats::{Recording, RobotSpec};
 /// use std::path::Path;
 /// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
@@ -1227,7 +1228,7 @@ pub struct RunErrors {
 /// Mean and largest tip error per run (and over all rows, last) for each model.
 ///
 /// ```
-/// use ctr_analysis::{diagnose::evaluate, simulate::ModelSpec};
+/// use ctr_analysis::{diagnose::evaluate, model::ModelSpec};
 /// use ctr_formats::{Recording, RobotSpec};
 /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
 ///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;

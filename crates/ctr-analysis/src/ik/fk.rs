@@ -1,23 +1,23 @@
 //! Forward kinematics and the tip Jacobian as the inverse kinematics sees them.
 //!
-//! [`TipFk`] hides the tube count: the core's `Solver<f64, N>` and `Robot<f64, N>` behind
-//! an object that solves joint vectors given as slices (mm, rad). It keeps the core
+//! [`TipFk`] hides the tube count: the row model's kernel ([`crate::model`]) and the
+//! core's `Solver<f64, N>` behind an object that solves joint vectors given as slices
+//! (mm, rad). It keeps the core
 //! solver's warm-start memory for the current iterate, so that trial points and the
 //! finite-difference probes around the iterate start from its converged twist.
 //!
 //! [`tip_jacobian`] is the only place the Jacobian comes from. It takes the core's
-//! analytic joint Jacobian ([`TipFk::jacobian`]: `Solver::solve_jacobian_with`, through
-//! the joint offsets, sensor offset and registration) where the model has one, and
-//! otherwise (gravity, clearance kinks, a snap) central finite differences of the core
+//! analytic joint Jacobian ([`TipFk::jacobian`]: the row kernel's, through the joint
+//! offsets, clearance kinks, sensor offset and registration) where the model has one,
+//! and otherwise (gravity, a snap) central finite differences of the core
 //! FK solved to tight tolerances (`residual_tolerance_per_mm` [`FK_RESIDUAL_TOLERANCE`])
 //! with steps [`FD_STEP_MM`] / [`FD_STEP_RAD`], one-sided where a probe would leave the
 //! joint limits.
 
 use super::limits::JointLimits;
-use ctr_core::effects::Effects;
-use ctr_core::{
-    Frame, Gravity, Joints, Loads, Model, Request, Robot, Solver, SolverConfig, Status,
-};
+use crate::model::Kernel;
+use ctr_core::{Frame, JointJacobian, Joints, Solver, SolverConfig, Status};
+use ctr_formats::joints_of;
 use nalgebra::{Matrix3, Rotation3, SMatrix, UnitQuaternion, Vector3};
 
 /// Most joints (`2 * MAX_TUBES`): the IK's matrices have this size, padded.
@@ -58,64 +58,61 @@ pub(crate) trait TipFk: Send + Sync {
     fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool;
 }
 
-/// [`TipFk`] on the core's solver, with the robot file's static effects (the robot
-/// already scaled): joint offsets, clearance kinks, sensor offset and registration
-/// through `Solver::solve_with`, or, with gravity, `Solver::solve_loaded` and the
-/// effects' `measured` (as [`crate::model`] composes them). The tip is in the
-/// measuring frame, where the targets are.
+/// [`TipFk`] on the row model's mechanics ([`crate::model`]): the robot file's static
+/// effects (the robot already scaled; clearance kinks, sensor offset and registration,
+/// gravity) through the one row kernel, and the joint offsets added in file units as
+/// `ctr-cli fk` adds them. The tip is in the measuring frame, where the targets are.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct CoreFk<const N: usize> {
-    robot: Robot<f64, N>,
-    model: Model,
-    effects: Effects<f64, N>,
-    gravity: Option<Gravity<f64>>,
-    /// no effects: the plain solve
-    plain: bool,
+    kernel: Kernel<N>,
+    /// joint offsets, file order and units (mm, degrees); `None` when all are zero
+    offsets: Option<[f64; MAX_JOINTS]>,
     current: Solver<f64, N>,
     pending: Solver<f64, N>,
 }
 
 impl<const N: usize> CoreFk<N> {
-    pub fn new(
-        robot: Robot<f64, N>,
-        model: Model,
-        effects: Effects<f64, N>,
-        gravity: Option<Gravity<f64>>,
-    ) -> Self {
+    /// `kernel`'s tips, with the joint offsets `offsets` (file order and units).
+    pub fn new(kernel: Kernel<N>, offsets: &[f64]) -> Self {
         let s = Solver::new(SolverConfig {
             residual_tolerance_per_mm: FK_RESIDUAL_TOLERANCE,
             ..SolverConfig::default()
         });
+        let shifted = offsets.iter().any(|&o| o != 0.0);
         CoreFk {
-            robot,
-            model,
-            plain: gravity.is_none() && effects == Effects::default(),
-            effects,
-            gravity,
+            kernel,
+            offsets: shifted
+                .then(|| core::array::from_fn(|i| offsets.get(i).copied().unwrap_or(0.0))),
             current: s,
             pending: s,
+        }
+    }
+
+    /// The actual joints of the commanded `q` (mm, rad): plus the joint offsets, added
+    /// in file units.
+    fn actual(&self, q: &[f64]) -> Joints<f64, N> {
+        match &self.offsets {
+            None => Self::joints(q),
+            Some(o) => {
+                let file: [f64; MAX_JOINTS] = core::array::from_fn(|i| match q.get(i) {
+                    Some(v) if i % 2 == 1 => v.to_degrees() + o[i],
+                    Some(v) => v + o[i],
+                    None => 0.0,
+                });
+                joints_of::<N>(&file[..2 * N])
+            }
         }
     }
 
     fn solve_once(
         &self,
         solver: &mut Solver<f64, N>,
-        joints: &Joints<f64, N>,
+        q: &[f64],
     ) -> Option<ctr_core::Solution<f64, N>> {
-        let mut request = Request::new(*joints, self.model);
-        if !self.plain {
-            request = request.effects(&self.effects);
-        }
-        if let Some(g) = self.gravity {
-            request = request.loads(Loads {
-                gravity: Some(g),
-                ..Default::default()
-            });
-        }
-        solver.solve(&self.robot, request).ok()
+        self.kernel.solve(solver, self.actual(q), [0.0; 3]).ok()
     }
 
-    /// The joint slice `s_1, theta_1, ...` as the core's joints.
+    /// The joint slice `s_1, theta_1, ...` (mm, rad) as the core's joints.
     fn joints(q: &[f64]) -> Joints<f64, N> {
         Joints::new(
             core::array::from_fn(|i| q[2 * i]),
@@ -131,15 +128,14 @@ impl<const N: usize> CoreFk<N> {
     }
 
     fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Frame<f64>> {
-        let joints = Self::joints(q);
         let ok = Self::accepted;
-        let sol = self.solve_once(solver, &joints)?;
+        let sol = self.solve_once(solver, q)?;
         if ok(&sol) {
             return Some(sol.tip);
         }
         // a warm start from far away can fail where a cold one does not
         solver.reset();
-        let sol = self.solve_once(solver, &joints)?;
+        let sol = self.solve_once(solver, q)?;
         ok(&sol).then_some(sol.tip)
     }
 }
@@ -181,15 +177,14 @@ impl<const N: usize> TipFk for CoreFk<N> {
     }
 
     fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool {
-        if self.gravity.is_some() || q.len() != 2 * N {
+        if q.len() != 2 * N {
             return false;
         }
         let mut s = self.current;
-        let mut analytic = ctr_core::JointJacobian::nan();
-        let request = Request::new(Self::joints(q), self.model)
-            .effects(&self.effects)
-            .joint_jacobian(&mut analytic);
-        let Ok(sol) = s.solve(&self.robot, request) else {
+        let mut analytic = JointJacobian::nan();
+        // the derivative with respect to the commanded joints is that with respect to
+        // the actual ones: the offsets are constant (under gravity the core has none)
+        let Ok(sol) = self.kernel.jacobian(&mut s, self.actual(q), &mut analytic) else {
             return false;
         };
         let finite = analytic
@@ -369,28 +364,44 @@ mod tests {
     /// by its limits gets a zero column on both paths.
     #[test]
     fn analytic_tip_jacobian_equals_the_differences() {
-        use ctr_core::effects::Registration;
-        use ctr_core::TubeParams;
+        use crate::model::{AnyKernel, ModelSpec};
+        use ctr_core::{Model, TubeParams};
+        use ctr_formats::{AnyRobot, Registration};
         let t = |od, id, len, cl, r| TubeParams {
             curvature_radius_mm: Some(r),
             ..TubeParams::<f64>::new(od, id, len, cl, 58000.0, 0.33)
         };
-        let robot = Robot::new([
+        let robot = AnyRobot::new(&[
             t(1.9, 1.6, 160.0, 80.0, 300.0),
             t(1.4, 1.1, 220.0, 70.0, 180.0),
             t(0.9, 0.6, 280.0, 50.0, 80.0),
         ])
         .unwrap();
-        let effects = Effects {
-            feed_offset_mm: [0.5, -0.3, 0.2],
-            rotation_offset_rad: [0.02, -0.04, 0.03],
-            registration: Some(Registration::from_axis_angle(
-                [1.0, 2.0, -0.5],
-                0.4,
-                [3.0, -1.0, 7.0],
-            )),
-            sensor_offset_mm: [0.8, 0.0, 3.0],
-            ..Default::default()
+        // file units: mm and degrees
+        let mut shifted = ModelSpec::plain(&robot, Model::Torsion).effects;
+        shifted.joint_offset = Some(ctr_formats::JointOffset {
+            feed_mm: vec![0.5, -0.3, 0.2],
+            rotation_deg: vec![1.1, -2.3, 1.7],
+        });
+        shifted.registration = Some(Registration {
+            translation_mm: [3.0, -1.0, 7.0],
+            rotation_axis: [1.0, 2.0, -0.5],
+            rotation_deg: 23.0,
+        });
+        shifted.sensor_offset = Some(ctr_formats::SensorOffset {
+            offset_mm: [0.8, 0.0, 3.0],
+        });
+        let core_fk = |e: &ctr_formats::Effects, model| {
+            let spec = ModelSpec {
+                robot,
+                model,
+                effects: e.clone(),
+            };
+            let rows = spec.rows().unwrap();
+            match rows.kernel() {
+                AnyKernel::Three(k) => CoreFk::new(*k, &rows.time_effects().joint_offset),
+                _ => unreachable!("three tubes"),
+            }
         };
         let q = [30.0, 0.2, 60.0, 1.7, 95.0, -1.0];
         let limits = JointLimits::new(&[160.0, 220.0, 280.0], None).unwrap();
@@ -407,10 +418,10 @@ mod tests {
             ]),
         )
         .unwrap();
-        for e in [Effects::default(), effects] {
+        for e in [ctr_formats::Effects::default(), shifted] {
             for model in [Model::Torsion, Model::Rigid] {
                 for lim in [&limits, &pinned] {
-                    let mut analytic = CoreFk::new(robot, model, e, None);
+                    let mut analytic = core_fk(&e, model);
                     let mut fd = DifferencesOnly(analytic);
                     let tip = analytic.trial(&q).unwrap();
                     analytic.accept();

@@ -96,8 +96,8 @@ mod qp;
 pub use fk::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 pub use limits::{JointLimits, LimitsError, RotationRange};
 
-use crate::model::FkModel;
-use ctr_core::{Frame, Model, Robot};
+use crate::model::{AnyKernel, ModelSpec};
+use ctr_core::{Frame, Model};
 use ctr_formats::AnyRobot;
 use ctr_formats::{Effects, IkTarget, RobotSpec, TubeLimits};
 use fk::{log_so3, tip_jacobian, CoreFk, Jacobian, TipFk, MAX_JOINTS};
@@ -357,8 +357,12 @@ impl Ik {
         limits: Option<&[TubeLimits]>,
         options: IkOptions,
     ) -> Result<Ik, IkError> {
-        let fkm =
-            FkModel::new(robot, model, effects).map_err(|e| IkError::Effect(e.to_string()))?;
+        let spec = ModelSpec {
+            robot: *robot,
+            model,
+            effects: effects.clone(),
+        };
+        let rows = spec.rows().map_err(|e| IkError::Effect(e.to_string()))?;
         for (effect, on) in [
             ("latency", effects.latency.is_some_and(|l| l.tau_s != 0.0)),
             (
@@ -420,24 +424,12 @@ impl Ik {
         )?;
         let lengths: Vec<f64> = robot.tube_params().iter().map(|p| p.length_mm).collect();
         let limits = JointLimits::new(&lengths, limits)?;
-        fn core<const N: usize>(r: &Robot<f64, N>, model: Model, e: &Effects) -> Box<dyn TipFk> {
-            let mut effects = e.core_effects::<N>();
-            let offsets = crate::timeline::TimeEffects::of(e, N).joint_offset;
-            for i in 0..N {
-                effects.feed_offset_mm[i] = offsets[2 * i];
-                effects.rotation_offset_rad[i] = offsets[2 * i + 1].to_radians();
-            }
-            let gravity = e
-                .gravity
-                .as_ref()
-                .map(|g| ctr_core::Gravity::new(g.direction_w, g.g_m_s2));
-            Box::new(CoreFk::new(*r, model, effects, gravity))
-        }
-        let fk: Box<dyn TipFk> = match fkm.robot() {
-            AnyRobot::One(r) => core(r, model, effects),
-            AnyRobot::Two(r) => core(r, model, effects),
-            AnyRobot::Three(r) => core(r, model, effects),
-            AnyRobot::Four(r) => core(r, model, effects),
+        let offsets = &rows.time_effects().joint_offset;
+        let fk: Box<dyn TipFk> = match rows.kernel() {
+            AnyKernel::One(k) => Box::new(CoreFk::new(*k, offsets)),
+            AnyKernel::Two(k) => Box::new(CoreFk::new(*k, offsets)),
+            AnyKernel::Three(k) => Box::new(CoreFk::new(*k, offsets)),
+            AnyKernel::Four(k) => Box::new(CoreFk::new(*k, offsets)),
         };
         let mut rng = SplitMix(options.seed);
         let n = 2 * limits.n_tubes();

@@ -162,12 +162,13 @@ class Robot:
         tip (the last), one per integration step. Solved cold; raises
         :class:`~ctr_py.SolverError` when the solve does not converge.
 
-        Effects: the backbone of the static mechanics: joint offsets added, tubes
-        scaled (stiffness, precurvature), points in the measuring frame when the file
-        has a registration (the sensor offset is not a backbone point: the last point
-        is the tube's tip, not the tracked point). Robots with clearance kinks, gravity
-        or time effects raise :class:`~ctr_py.InputError` (the backbone solver does not
-        model them; use :meth:`fk` for the tip)."""
+        Effects: the backbone of the file's static model, the same solve as
+        :meth:`fk`'s: joint offsets added, tubes scaled (stiffness, precurvature),
+        clearance kinks, gravity, points in the measuring frame when the file has a
+        registration (the sensor offset is not a backbone point: the last point is the
+        tube's tip, not the tracked point). Time effects (latency, friction with a
+        play) raise :class:`~ctr_py.InputError`: one joint vector has no history; use
+        :meth:`fk` with ``t_s`` for the tip along a run."""
 
     def jacobian(
         self, q: ArrayLike, model: Optional[Model] = None, *, threads: int = 0

@@ -1,0 +1,200 @@
+//! The one place a row becomes a core request.
+//!
+//! A [`Kernel`] holds a model's mechanics for a tube count `N`: the robot with its
+//! tubes scaled (`stiffness`, `precurvature`), the base mechanics, the per-solve effects
+//! the core applies (clearance kinks, sensor offset, registration) and gravity. Given a
+//! row's actual joints (joint offsets and time effects already applied, in file units,
+//! by [`super::RowModel`]) and its tip force, it asks the core one
+//! [`Request`](ctr_core::Request): the loaded solver where there is a load (gravity or
+//! a force), the unloaded one otherwise, the tip as measured. `ctr-cli fk`, the
+//! simulation of recordings (and so the diagnosis) and the inverse kinematics all solve
+//! through it.
+
+use ctr_core::{
+    Effects as CoreEffects, Gravity, JointJacobian, Joints, Loads, Model, Request, Robot, Solution,
+    SolveError, Solver, MAX_TUBES,
+};
+use ctr_formats::{joints_of, AnyRobot, Effects, FkResult};
+use nalgebra::Vector3;
+
+/// A model's mechanics for `N` tubes (module doc).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Kernel<const N: usize> {
+    robot: Robot<f64, N>,
+    model: Model,
+    /// the core's per-solve effects; `None` where they would change nothing
+    effects: Option<CoreEffects<f64, N>>,
+    gravity: Option<Gravity<f64>>,
+}
+
+impl<const N: usize> Kernel<N> {
+    /// The mechanics of `robot` (scaled already) under `model` with the file's `effects`.
+    fn new(robot: &Robot<f64, N>, model: Model, effects: &Effects) -> Self {
+        let core = effects.core_effects::<N>();
+        Kernel {
+            robot: *robot,
+            model,
+            effects: (core != CoreEffects::default()).then_some(core),
+            gravity: effects
+                .gravity
+                .as_ref()
+                .map(|g| Gravity::new(g.direction_w, g.g_m_s2)),
+        }
+    }
+
+    /// The core request of actual joints `q` with the tip force `force_n` (N, in W).
+    fn request(&self, q: Joints<f64, N>, force_n: [f64; 3]) -> Request<'_, f64, N> {
+        let mut request = Request::new(q, self.model);
+        if let Some(e) = &self.effects {
+            request = request.effects(e);
+        }
+        if self.gravity.is_some() || force_n.iter().any(|&f| f != 0.0) {
+            request = request.loads(Loads {
+                gravity: self.gravity,
+                tip_force_n: force_n,
+                ..Default::default()
+            });
+        }
+        request
+    }
+
+    /// The tip as measured at actual joints `q` under the tip force `force_n`,
+    /// warm-started from `solver`'s memory.
+    pub fn solve(
+        &self,
+        solver: &mut Solver<f64, N>,
+        q: Joints<f64, N>,
+        force_n: [f64; 3],
+    ) -> Result<Solution<f64, N>, SolveError> {
+        solver.solve(&self.robot, self.request(q, force_n))
+    }
+
+    /// [`solve`](Self::solve) with the backbone points written into `points` (as far as
+    /// it reaches; the solution says how many there are), in the measuring frame.
+    pub fn backbone(
+        &self,
+        solver: &mut Solver<f64, N>,
+        q: Joints<f64, N>,
+        force_n: [f64; 3],
+        points: &mut [Vector3<f64>],
+    ) -> Result<Solution<f64, N>, SolveError> {
+        solver.solve(&self.robot, self.request(q, force_n).backbone(points))
+    }
+
+    /// [`solve`](Self::solve) without a tip force, with the joint Jacobian of the
+    /// measured tip written into `jacobian` (the core's analytic one; under gravity the
+    /// core has none: [`SolveError::Unsupported`]).
+    pub fn jacobian(
+        &self,
+        solver: &mut Solver<f64, N>,
+        q: Joints<f64, N>,
+        jacobian: &mut JointJacobian<f64, N>,
+    ) -> Result<Solution<f64, N>, SolveError> {
+        solver.solve(
+            &self.robot,
+            self.request(q, [0.0; 3]).joint_jacobian(jacobian),
+        )
+    }
+}
+
+/// A [`Kernel`] for the tube count a file decided.
+// one per job, built once and borrowed by every solver: its size is never copied in a loop
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub(crate) enum AnyKernel {
+    One(Kernel<1>),
+    Two(Kernel<2>),
+    Three(Kernel<3>),
+    Four(Kernel<4>),
+}
+
+impl AnyKernel {
+    /// The mechanics of `robot` (scaled already) under `model` with the file's `effects`.
+    pub fn new(robot: &AnyRobot, model: Model, effects: &Effects) -> Self {
+        match robot {
+            AnyRobot::One(r) => AnyKernel::One(Kernel::new(r, model, effects)),
+            AnyRobot::Two(r) => AnyKernel::Two(Kernel::new(r, model, effects)),
+            AnyRobot::Three(r) => AnyKernel::Three(Kernel::new(r, model, effects)),
+            AnyRobot::Four(r) => AnyKernel::Four(Kernel::new(r, model, effects)),
+        }
+    }
+
+    /// This kernel with a fresh core solver (warm-start memory) of its tube count.
+    pub fn bind(&self) -> Bound<'_> {
+        match self {
+            AnyKernel::One(k) => Bound::One(k, Solver::default()),
+            AnyKernel::Two(k) => Bound::Two(k, Solver::default()),
+            AnyKernel::Three(k) => Bound::Three(k, Solver::default()),
+            AnyKernel::Four(k) => Bound::Four(k, Solver::default()),
+        }
+    }
+}
+
+/// A [`Kernel`] and a core solver of its tube count.
+#[derive(Clone, Debug)]
+pub(crate) enum Bound<'k> {
+    One(&'k Kernel<1>, Solver<f64, 1>),
+    Two(&'k Kernel<2>, Solver<f64, 2>),
+    Three(&'k Kernel<3>, Solver<f64, 3>),
+    Four(&'k Kernel<4>, Solver<f64, 4>),
+}
+
+/// `body` with `k` (the kernel) and `s` (the solver) of whichever tube count `bound` has.
+macro_rules! each_count {
+    ($bound:expr, |$k:ident, $s:ident| $body:expr) => {
+        match $bound {
+            Bound::One($k, $s) => $body,
+            Bound::Two($k, $s) => $body,
+            Bound::Three($k, $s) => $body,
+            Bound::Four($k, $s) => $body,
+        }
+    };
+}
+
+impl Bound<'_> {
+    /// The tip of actual joints in file order and units (mm, degrees) under the tip
+    /// force `force_n`, warm-started.
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count.
+    pub fn fk(&mut self, actual: &[f64], force_n: [f64; 3]) -> Result<FkResult, SolveError> {
+        each_count!(self, |k, s| k
+            .solve(s, joints_of(actual), force_n)
+            .map(|sol| FkResult::from_solution(&sol)))
+    }
+
+    /// [`fk`](Self::fk) with the backbone points (x, y, z, mm, from the guide exit to
+    /// the tip) in the measuring frame.
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count.
+    pub fn backbone(
+        &mut self,
+        actual: &[f64],
+        force_n: [f64; 3],
+    ) -> Result<(FkResult, Vec<[f64; 3]>), SolveError> {
+        /// Points a backbone buffer starts with (grown to what the solve reports).
+        const FIRST_POINTS: usize = 256;
+        let mut points = vec![Vector3::zeros(); FIRST_POINTS];
+        let memory = self.clone();
+        loop {
+            let sol = each_count!(&mut *self, |k, s| k
+                .backbone(s, joints_of(actual), force_n, &mut points)
+                .map(|sol| (FkResult::from_solution(&sol), sol.backbone_points)))?;
+            let (tip, n) = sol;
+            if n <= points.len() {
+                return Ok((tip, points[..n].iter().map(|p| [p.x, p.y, p.z]).collect()));
+            }
+            // the same solve again, from the same memory, with room for every point
+            *self = memory.clone();
+            points.resize(n, Vector3::zeros());
+        }
+    }
+
+    /// Forgets the warm-start memory.
+    pub fn reset(&mut self) {
+        each_count!(self, |_k, s| s.reset())
+    }
+}
+
+const _: () = assert!(MAX_TUBES == 4, "AnyKernel has one variant per tube count");
