@@ -29,13 +29,11 @@
 //! ```
 
 pub mod batch;
-pub mod diagnose;
 pub mod ik;
 pub mod job;
 pub mod model;
 mod robot;
 pub mod simulate;
-pub mod synth;
 pub mod timeline;
 
 pub use robot::{FkSolver, Kinematics};

@@ -1,4 +1,4 @@
-//! The diagnosis run blind on generated recordings ([`ctr_analysis::synth`]): the world
+//! The diagnosis run blind on generated recordings ([`ctr_diagnosis::synth`]): the world
 //! is the project's own model of a shared robot with effects switched on, the user's
 //! model is the robot file's plain torsion model (the rigid model where torsion is
 //! concealed). Each case asserts that the findings are exactly the concealed effects
@@ -12,15 +12,15 @@
 //! factors 0.7-1.4, radius factors 0.85-1.15, latency 0.2-0.8 s, sensor offsets 2-5 mm,
 //! gravity on liu2023 (the one robot that sags measurably; tracker noise 0.05 mm there,
 //! as in the shared gravity recording). Run in release:
-//! `cargo test -p ctr-analysis --release --test blind -- --nocapture`.
+//! `cargo test -p ctr-diagnosis --release --test blind -- --nocapture`.
 //!
 //! `CTR_SYNTH_OUT=DIR` also writes every generated recording to `DIR/<case>.csv` (for
 //! `ctr-cli diagnose` and `scripts/bench_diagnose.sh`).
 
-use ctr_analysis::diagnose::{diagnose, split, Diagnosis, Options};
 use ctr_analysis::simulate::{predict, ModelSpec};
-use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 use ctr_core::Model;
+use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec};
+use ctr_diagnosis::{diagnose, split, Diagnosis, Options};
 use ctr_formats::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
     RobotSpec, SensorOffset, Stiffness,

@@ -1,8 +1,8 @@
 //! `calibrate` identifies the bending stiffness from tip deflections under known hung
 //! weights (the seed paper's identification, recording columns `fx_n,fy_n,fz_n`).
 
-use ctr_analysis::diagnose::{calibrate, EffectId, Holdout, Options};
 use ctr_analysis::simulate::{predict, ModelSpec};
+use ctr_diagnosis::{calibrate, EffectId, Holdout, Options};
 use ctr_formats::{Recording, RobotSpec, Stiffness};
 use std::fmt::Write;
 use std::path::PathBuf;

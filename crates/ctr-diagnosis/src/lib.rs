@@ -26,11 +26,13 @@
 mod candidates;
 mod fit;
 pub mod locate;
+#[cfg(feature = "synth")]
+pub mod synth;
 
 pub use candidates::EffectId;
 pub use locate::Statement;
 
-use crate::simulate::{predict, ModelSpec};
+use ctr_analysis::simulate::{predict, ModelSpec};
 use ctr_formats::{Recording, RobotSpec};
 use fit::Problem;
 use serde::Serialize;
@@ -78,7 +80,7 @@ impl std::str::FromStr for Holdout {
     /// `blocks:K` (K >= 2) or `runs:LABEL[,LABEL...]`, as `--holdout` takes it.
     ///
     /// ```
-    /// use ctr_analysis::diagnose::Holdout;
+    /// use ctr_diagnosis::Holdout;
     /// assert_eq!("blocks:3".parse(), Ok(Holdout::Blocks { every: 3 }));
     /// assert_eq!("runs: a ,b".parse(), Ok(Holdout::Runs(vec!["a".into(), "b".into()])));
     /// assert!("blocks:1".parse::<Holdout>().is_err());
@@ -705,7 +707,8 @@ struct Best {
 /// Diagnoses `model` against `rec`.
 ///
 /// ```no_run
-/// use ctr_analysis::{diagnose::{diagnose, Options}, simulate::ModelSpec};
+/// use ctr_diagnosis::{diagnose, Options};
+/// use ctr_analysis::simulate::ModelSpec;
 /// use ctr_formats::{Recording, RobotSpec};
 /// use std::path::Path;
 /// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
@@ -1102,7 +1105,8 @@ fn explain(c: EffectId, m: &ModelSpec) -> String {
 /// finding per effect (before: the user model; after: all fitted).
 ///
 /// ```no_run
-/// use ctr_analysis::{diagnose::{calibrate, EffectId, Options}, simulate::ModelSpec};
+/// use ctr_diagnosis::{calibrate, EffectId, Options};
+/// use ctr_analysis::simulate::ModelSpec;
 /// use ctr_formats::{Recording, RobotSpec};
 /// use std::path::Path;
 /// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
@@ -1227,7 +1231,8 @@ pub struct RunErrors {
 /// Mean and largest tip error per run (and over all rows, last) for each model.
 ///
 /// ```
-/// use ctr_analysis::{diagnose::evaluate, simulate::ModelSpec};
+/// use ctr_analysis::simulate::ModelSpec;
+/// use ctr_diagnosis::evaluate;
 /// use ctr_formats::{Recording, RobotSpec};
 /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
 ///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;

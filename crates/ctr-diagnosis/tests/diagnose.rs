@@ -1,8 +1,8 @@
 //! The diagnosis, run blind on the shared recordings: each must give exactly its
 //! `expected_findings` and a held-out RMS after fitting within 1.25 x its noise floor.
 
-use ctr_analysis::diagnose::{diagnose, Options};
 use ctr_analysis::simulate::ModelSpec;
+use ctr_diagnosis::{diagnose, Options};
 use ctr_formats::{Recording, RobotSpec};
 use serde_json::Value;
 use std::path::PathBuf;

@@ -15,8 +15,8 @@
 //! solves `(J^T W J + lambda D) d = -J^T W e`; when the step leaves the parameters'
 //! bounds it is solved again as a box-constrained QP with clarabel.
 
-use super::candidates::EffectId;
-use crate::simulate::{predict, ModelSpec};
+use crate::candidates::EffectId;
+use ctr_analysis::simulate::{predict, ModelSpec};
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 

@@ -15,7 +15,7 @@
 //! | `latency` | delay of the robot behind its commands (s) |
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
 
-use crate::simulate::ModelSpec;
+use ctr_analysis::simulate::ModelSpec;
 use ctr_core::Model;
 use ctr_formats::{
     Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration, SensorOffset,
@@ -67,7 +67,7 @@ impl EffectId {
     /// The contract's id.
     ///
     /// ```
-    /// assert_eq!(ctr_analysis::diagnose::EffectId::JointOffset.as_str(), "joint_offset");
+    /// assert_eq!(ctr_diagnosis::EffectId::JointOffset.as_str(), "joint_offset");
     /// ```
     pub fn as_str(self) -> &'static str {
         match self {
@@ -87,7 +87,7 @@ impl EffectId {
     /// Parses a contract id.
     ///
     /// ```
-    /// use ctr_analysis::diagnose::EffectId;
+    /// use ctr_diagnosis::EffectId;
     /// assert_eq!(EffectId::parse("latency"), Some(EffectId::Latency));
     /// assert_eq!(EffectId::parse("lag"), None);
     /// ```
@@ -99,7 +99,7 @@ impl EffectId {
     /// ids for an unknown one: what `ctr-cli` and `ctr_py` say.
     ///
     /// ```
-    /// use ctr_analysis::diagnose::EffectId;
+    /// use ctr_diagnosis::EffectId;
     /// assert_eq!(EffectId::from_id(" latency"), Ok(EffectId::Latency));
     /// assert!(EffectId::from_id("lag").unwrap_err().starts_with("unknown effect \"lag\""));
     /// ```
