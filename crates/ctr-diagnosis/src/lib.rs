@@ -570,35 +570,6 @@ fn leftover(
     }
 }
 
-/// Runs `f` on every job on a pool of `threads` threads; results in job order.
-fn run_pool<J: Sync, R: Send>(threads: usize, jobs: &[J], f: impl Fn(&J) -> R + Sync) -> Vec<R> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<Option<R>> = (0..jobs.len()).map(|_| None).collect();
-    std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads.clamp(1, jobs.len().max(1)))
-            .map(|_| {
-                let (next, f) = (&next, &f);
-                s.spawn(move || {
-                    let mut done = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if i >= jobs.len() {
-                            break done;
-                        }
-                        done.push((i, f(&jobs[i])));
-                    }
-                })
-            })
-            .collect();
-        for w in workers {
-            for (i, r) in w.join().expect("a fit does not panic") {
-                out[i] = Some(r);
-            }
-        }
-    });
-    out.into_iter().map(|r| r.expect("every job ran")).collect()
-}
-
 /// What a diagnosis and a calibration both start from: the split and the user model's
 /// error on it.
 struct Start {
@@ -786,7 +757,7 @@ pub fn diagnose(
         // free: a first effect that soaked up part of another must be able to give it back
         let held_x: Vec<f64> = accepted.iter().flat_map(|b| b.read(&current)).collect();
         let with = |c: EffectId| -> Vec<EffectId> { accepted.iter().copied().chain([c]).collect() };
-        let results = run_pool(threads, &jobs, |(c, x0)| {
+        let results = ctr_formats::parallel::map(&jobs, threads, |(c, x0)| {
             let mut p = problem(current.clone(), with(*c));
             p.threads = 1;
             let x: Vec<f64> = held_x.iter().chain(x0).copied().collect();
