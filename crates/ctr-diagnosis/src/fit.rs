@@ -43,6 +43,9 @@ pub(crate) struct Problem<'a> {
     pub clearance_table: Option<usize>,
 }
 
+/// Jacobians per fit.
+pub(crate) const MAX_FIT_ITERATIONS: usize = 25;
+
 /// Weight of a clearance table's roughness: one degree of second difference costs as
 /// much as this many mm of tip error on one row.
 const TABLE_SMOOTHNESS_MM_PER_DEG: f64 = 2.0;
