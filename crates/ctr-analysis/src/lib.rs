@@ -30,10 +30,8 @@
 //! ```
 
 pub mod batch;
-pub mod diagnose;
 pub mod ik;
 pub mod job;
 pub mod model;
 pub mod simulate;
-pub mod synth;
 pub mod timeline;

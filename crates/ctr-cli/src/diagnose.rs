@@ -1,11 +1,11 @@
 //! `ctr-cli diagnose`, `ctr-cli calibrate` and `ctr-cli evaluate`: a robot file and a
 //! recording in, the mismatch report, the fitted robot file and plots out. The numerics
-//! are `ctr_analysis::diagnose`'s; this module reads, prints and writes.
+//! are `ctr_diagnosis`'s; this module reads, prints and writes.
 
 use crate::plots;
 use crate::Failure;
-use ctr_analysis::diagnose::{self, Diagnosis, EffectId, Holdout, Options};
 use ctr_analysis::model::ModelSpec;
+use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
 use ctr_formats::{AtomicFile, Recording, RobotSpec};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -154,7 +154,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         clearance_table: None,
     };
     let model = ModelSpec::from_spec(&spec);
-    let d = diagnose::diagnose(&model, &rec, &options)
+    let d = ctr_diagnosis::diagnose(&model, &rec, &options)
         .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
     write_outputs(&spec, &d, &args.report, &args.out)?;
     if let Some(dir) = &args.plots {
@@ -174,7 +174,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
         clearance_table: args.table.map(usize::from),
         ..Options::default()
     };
-    let d = diagnose::calibrate(&ModelSpec::from_spec(&spec), &rec, &args.fit, &options)
+    let d = ctr_diagnosis::calibrate(&ModelSpec::from_spec(&spec), &rec, &args.fit, &options)
         .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
     write_outputs(&spec, &d, &args.report, &args.out)?;
     print!("{}", d.report.summary(&rec.file));
@@ -207,7 +207,7 @@ pub fn evaluate(args: EvaluateArgs) -> Result<(), Failure> {
     }
     let rec = Recording::from_path(&args.recording, n_tubes.unwrap_or(1))
         .map_err(|e| Failure::Input(e.to_string()))?;
-    let table = diagnose::evaluate(&models, &rec)
+    let table = ctr_diagnosis::evaluate(&models, &rec)
         .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
     let width = table.iter().map(|r| r.run.len()).max().unwrap_or(3).max(3);
     let mut head = format!("{:width$}  {:>5}", "run", "rows");

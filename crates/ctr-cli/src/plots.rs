@@ -6,9 +6,9 @@
 //! - `run-<label>.svg`: per run, the measured tip path and both models' paths, projected
 //!   on the plane of W in which the measured path spreads most.
 
-use ctr_analysis::diagnose::Diagnosis;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
+use ctr_diagnosis::Diagnosis;
 use ctr_formats::Recording;
 use plotters::prelude::*;
 use std::path::Path;

@@ -11,8 +11,8 @@
 use crate::errors;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
-use ctr_analysis::diagnose::{self as analysis, Diagnosis, EffectId, Holdout, Options};
 use ctr_analysis::model::ModelSpec;
+use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use std::borrow::Cow;
@@ -398,7 +398,7 @@ pub fn diagnose(
     let model = ModelSpec::from_spec(robot.spec());
     let rec_ref: &ctr_formats::Recording = &rec;
     let d = py
-        .detach(|| analysis::diagnose(&model, rec_ref, &options))
+        .detach(|| ctr_diagnosis::diagnose(&model, rec_ref, &options))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
     Report::new(py, &d, robot, &rec)
 }
@@ -445,7 +445,7 @@ pub fn calibrate(
     let model = ModelSpec::from_spec(robot.spec());
     let rec_ref: &ctr_formats::Recording = &rec;
     let d = py
-        .detach(|| analysis::calibrate(&model, rec_ref, &fit, &options))
+        .detach(|| ctr_diagnosis::calibrate(&model, rec_ref, &fit, &options))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
     Report::new(py, &d, robot, &rec)
 }
@@ -505,7 +505,7 @@ pub fn evaluate<'py>(
         .collect();
     let rec_ref: &ctr_formats::Recording = &rec;
     let table = py
-        .detach(|| analysis::evaluate(&models, rec_ref))
+        .detach(|| ctr_diagnosis::evaluate(&models, rec_ref))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
     let out = PyList::empty(py);
     for r in table {

@@ -11,7 +11,7 @@
 //! pure-Python exception classes; `_ctr.pyi` there documents the Python API.
 //! Recordings, diagnosis, calibration and evaluation (`ctr_py.read_recording`,
 //! `ctr_py.diagnose`, `ctr_py.calibrate`, `ctr_py.evaluate`) are module functions in
-//! [`recording`] and [`diagnosis`], over `ctr_analysis::diagnose`, as `ctr-cli diagnose`
+//! [`recording`] and [`diagnosis`], over `ctr_diagnosis`, as `ctr-cli diagnose`
 //! calls it.
 //!
 //! Rust tests here never start an interpreter (see the toolchain notes): the Python

@@ -498,7 +498,7 @@ def diagnose(
     Splits the rows (``holdout``), estimates the noise, locates the error, then adds
     the left-out effects that explain it, one at a time, each fitted and kept only
     when it lowers the error on the held-out rows; see the README and
-    ``ctr_analysis::diagnose``. The report equals the CLI's for the same inputs.
+    ``ctr_diagnosis``. The report equals the CLI's for the same inputs.
 
     ``recording``: a :class:`Recording` read for the robot's tube count, or a path
     (read with the robot's joint columns). ``holdout``: ``"blocks:K"`` (each run in

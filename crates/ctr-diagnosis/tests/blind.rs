@@ -1,4 +1,4 @@
-//! The diagnosis run blind on generated recordings ([`ctr_analysis::synth`]): the world
+//! The diagnosis run blind on generated recordings ([`ctr_diagnosis::synth`]): the world
 //! is the project's own model of a shared robot with effects switched on, the user's
 //! model is the robot file's plain torsion model (the rigid model where torsion is
 //! concealed). Each case asserts that the findings are exactly the concealed effects
@@ -12,16 +12,19 @@
 //! factors 0.7-1.4, radius factors 0.85-1.15, latency 0.2-0.8 s, sensor offsets 2-5 mm,
 //! gravity on liu2023 (the one robot that sags measurably; tracker noise 0.05 mm there,
 //! as in the shared gravity recording). Run in release:
-//! `cargo test -p ctr-analysis --release --test blind -- --nocapture`.
+//! `cargo test -p ctr-diagnosis --release --test blind -- --nocapture`.
 //!
 //! `CTR_SYNTH_OUT=DIR` also writes every generated recording to `DIR/<case>.csv` (for
 //! `ctr-cli diagnose` and `scripts/bench_diagnose.sh`).
 
-use ctr_analysis::diagnose::{diagnose, split, Diagnosis, Options};
+mod common;
+
+use common::{print_trials, robot, shared};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
-use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
 use ctr_core::Model;
+use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec};
+use ctr_diagnosis::{diagnose, split, Options};
 use ctr_formats::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
     RobotSpec, SensorOffset, Stiffness,
@@ -37,13 +40,6 @@ const GRAVITY_NOISE_SIGMA_MM: f64 = 0.05;
 const THREE_TUBE_ROTATION_STEP_DEG: f64 = 4.0;
 /// Random-walk rows for three tubes.
 const THREE_TUBE_WALK_ROWS: usize = 250;
-
-fn shared() -> PathBuf {
-    std::env::var_os("CTR_SHARED_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-        PathBuf::from,
-    )
-}
 
 /// One blind case: the world and the measurement.
 struct Case {
@@ -100,20 +96,10 @@ impl Case {
     }
 }
 
-fn print_trials(d: &Diagnosis) {
-    let r = &d.report;
-    for t in &r.tried {
-        eprintln!(
-            "   round {} {:>13}: fit {:.4} held {:.4} bic {:>9.1} {}{}",
-            t.round,
-            t.effect.as_str(),
-            t.rms_mm,
-            t.heldout_rms_mm,
-            t.bic_change,
-            if t.added { "ADDED " } else { "" },
-            t.note
-        );
-    }
+/// A shared robot and its stable ranges (`shared/data/manifest.json`).
+fn robot_and_ranges(name: &str) -> (RobotSpec, Ranges) {
+    let manifest = std::fs::read_to_string(shared().join("manifest.json")).unwrap();
+    (robot(name), Ranges::from_manifest(&manifest, name).unwrap())
 }
 
 /// The measurement of a case: the shared recordings' sampling, about 1,000 rows.
@@ -141,10 +127,7 @@ fn synth_spec(case: &Case, n_tubes: usize) -> SynthSpec {
 
 fn run(case: Case) {
     let started = std::time::Instant::now();
-    let data = shared();
-    let spec = RobotSpec::from_path(&data.join(format!("robots/{}.toml", case.robot))).unwrap();
-    let manifest = std::fs::read_to_string(data.join("manifest.json")).unwrap();
-    let ranges = Ranges::from_manifest(&manifest, case.robot).unwrap();
+    let (spec, ranges) = robot_and_ranges(case.robot);
     let user = ModelSpec {
         robot: spec.robot,
         model: if case.torsion {
@@ -226,7 +209,7 @@ fn run(case: Case) {
         eprintln!("   found {}: {}", f.effect.as_str(), f.parameters);
     }
     if !ok || std::env::var_os("CTR_BLIND_VERBOSE").is_some() {
-        print_trials(&d);
+        print_trials(r);
         eprintln!("   {}", r.unexplained);
     }
     assert_eq!(found, expected, "{}: findings", case.name);
@@ -646,10 +629,7 @@ fn outliers_latency_friction_nitinol3() {
 
 #[test]
 fn generated_recording_round_trips_through_csv() {
-    let data = shared();
-    let spec = RobotSpec::from_path(&data.join("robots/nitinol3.toml")).unwrap();
-    let manifest = std::fs::read_to_string(data.join("manifest.json")).unwrap();
-    let ranges = Ranges::from_manifest(&manifest, "nitinol3").unwrap();
+    let (spec, ranges) = robot_and_ranges("nitinol3");
     let case = Case::new("round_trip", "nitinol3", 5).outliers(0.01);
     let world = ModelSpec {
         robot: spec.robot,

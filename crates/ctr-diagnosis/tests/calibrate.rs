@@ -1,23 +1,18 @@
 //! `calibrate` identifies the bending stiffness from tip deflections under known hung
 //! weights (the seed paper's identification, recording columns `fx_n,fy_n,fz_n`).
 
-use ctr_analysis::diagnose::{calibrate, EffectId, Holdout, Options};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
-use ctr_formats::{Recording, RobotSpec, Stiffness};
-use std::fmt::Write;
-use std::path::PathBuf;
+mod common;
 
-fn shared() -> PathBuf {
-    std::env::var_os("CTR_SHARED_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-        PathBuf::from,
-    )
-}
+use common::{robot, shared};
+use ctr_diagnosis::{calibrate, EffectId, Holdout, Options};
+use ctr_formats::{Recording, Stiffness};
+use std::fmt::Write;
 
 #[test]
 fn stiffness_from_hung_weights() {
-    let spec = RobotSpec::from_path(&shared().join("robots/liu2023.toml")).unwrap();
+    let spec = robot("liu2023");
     let user = ModelSpec::from_spec(&spec);
     let mut world = user.clone();
     let truth = [0.8, 1.3];
@@ -82,7 +77,7 @@ fn clearance_table_from_a_recording() {
     // the seed's "database": the kink as a table over the relative angle, here recovered
     // from the shared clearance recording (truth: a cosine profile, 2.5 deg peak at 205 deg)
     let dir = shared().join("recordings");
-    let spec = RobotSpec::from_path(&shared().join("robots/liu2023.toml")).unwrap();
+    let spec = robot("liu2023");
     let rec = Recording::from_path(&dir.join("dev-clearance.csv"), 2).unwrap();
     let opt = Options {
         clearance_table: Some(24),

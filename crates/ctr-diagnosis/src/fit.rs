@@ -11,13 +11,14 @@
 //! minimised by Levenberg-Marquardt on iteratively reweighted least squares (weights
 //! `w_i = min(1, c / |e_i|)`). The Jacobian of the predictions with respect to the
 //! parameters comes from the simulator by central differences at each parameter's
-//! natural scale (one-sided at a bound), its columns computed on all cores. Each step
-//! solves `(J^T W J + lambda D) d = -J^T W e`; when the step leaves the parameters'
-//! bounds it is solved again as a box-constrained QP with clarabel.
+//! natural scale (one-sided at a bound), its columns computed in parallel
+//! ([`ctr_formats::parallel::map`], one column per job). Each step solves
+//! `(J^T W J + lambda D) d = -J^T W e`; when the step leaves the parameters' bounds it
+//! is solved again as a box-constrained QP with clarabel.
 
-use super::candidates::EffectId;
-use crate::model::ModelSpec;
-use crate::simulate::predict;
+use crate::candidates::EffectId;
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 
@@ -42,6 +43,9 @@ pub(crate) struct Problem<'a> {
     /// differences) is penalised so the table stays smooth.
     pub clearance_table: Option<usize>,
 }
+
+/// Jacobians per fit.
+pub(crate) const MAX_FIT_ITERATIONS: usize = 25;
 
 /// Weight of a clearance table's roughness: one degree of second difference costs as
 /// much as this many mm of tip error on one row.
@@ -220,26 +224,9 @@ impl Problem<'_> {
                     .collect(),
             )
         };
-        let threads = self.threads.clamp(1, np.max(1));
-        let mut cols: Vec<Option<Vec<f64>>> = vec![None; np];
-        std::thread::scope(|s| {
-            let handles: Vec<_> = (0..threads)
-                .map(|t| {
-                    let column = &column;
-                    s.spawn(move || {
-                        (t..np)
-                            .step_by(threads)
-                            .map(|j| (j, column(j)))
-                            .collect::<Vec<_>>()
-                    })
-                })
-                .collect();
-            for h in handles {
-                for (j, c) in h.join().expect("a Jacobian column does not panic") {
-                    cols[j] = c;
-                }
-            }
-        });
+        // one column per item; `threads` is at least 1 (0 would mean all cores)
+        let columns: Vec<usize> = (0..np).collect();
+        let cols = ctr_formats::parallel::map(&columns, self.threads.max(1), |&j| column(j));
         let mut jac = DMatrix::zeros(m, np);
         for (j, c) in cols.into_iter().enumerate() {
             let c = c?;

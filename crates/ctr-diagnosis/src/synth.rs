@@ -1,7 +1,7 @@
 //! Synthetic recordings with concealed effects: the proof bench of the diagnosis.
 //!
 //! The world is one of the project's own models with effects switched on (a
-//! [`ModelSpec`], run along the commands by [`simulate::predict`](crate::simulate::predict)).
+//! [`ModelSpec`], run along the commands by [`simulate::predict`](ctr_analysis::simulate::predict)).
 //! [`generate`] commands it through the seed paper's experiments ([`experiments`]):
 //!
 //! | run | what is commanded |
@@ -23,7 +23,7 @@
 //! ```
 //! use ctr_formats::{Effects, Latency, RobotSpec};
 //! use ctr_analysis::model::ModelSpec;
-//! use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
+//! use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec};
 //! let spec = RobotSpec::from_toml_str(r#"
 //! [[tube]]
 //! outer_diameter_mm = 1.8
@@ -59,8 +59,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::model::ModelSpec;
-use crate::simulate::{predict, SimError};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::{predict, SimError};
 use ctr_formats::joint_columns;
 use ctr_formats::{format_float, RecordedRow, Recording, Run};
 use std::io::{self, Write};
@@ -100,7 +100,7 @@ pub const COMMAND_DECIMALS: i32 = 4;
 /// ```
 /// let manifest = r#"{"robots": {"nitinol2": {"valid_ranges": {
 ///     "increments": [[10.0, 60.0], [10.0, 80.0]], "theta_deg": [-180.0, 180.0]}}}}"#;
-/// let r = ctr_analysis::synth::Ranges::from_manifest(manifest, "nitinol2")?;
+/// let r = ctr_diagnosis::synth::Ranges::from_manifest(manifest, "nitinol2")?;
 /// assert_eq!(r.increments_mm, [[10.0, 60.0], [10.0, 80.0]]);
 /// assert_eq!(r.theta_deg, [-180.0, 180.0]);
 /// # Ok::<(), String>(())
@@ -157,7 +157,7 @@ impl Ranges {
 /// `world`).
 ///
 /// ```
-/// let s = ctr_analysis::synth::SynthSpec { seed: 7, ..Default::default() };
+/// let s = ctr_diagnosis::synth::SynthSpec { seed: 7, ..Default::default() };
 /// assert_eq!(s.noise_sigma_mm, 0.2);
 /// assert_eq!(s.outlier_fraction, 0.0);
 /// ```
@@ -264,8 +264,8 @@ fn norm2(v: &[f64; 3]) -> f64 {
 /// cryptography; here only so that a seed fixes a recording.
 ///
 /// ```
-/// let mut a = ctr_analysis::synth::Rng::new(42);
-/// let mut b = ctr_analysis::synth::Rng::new(42);
+/// let mut a = ctr_diagnosis::synth::Rng::new(42);
+/// let mut b = ctr_diagnosis::synth::Rng::new(42);
 /// assert_eq!(a.next_u64(), b.next_u64());
 /// let u = a.uniform();
 /// assert!((0.0..1.0).contains(&u));
@@ -401,7 +401,7 @@ fn out_and_back(a: f64, b: f64, steps: usize) -> Vec<f64> {
 /// The random walk draws from `rng`.
 ///
 /// ```
-/// use ctr_analysis::synth::{experiments, Ranges, Rng, SynthSpec};
+/// use ctr_diagnosis::synth::{experiments, Ranges, Rng, SynthSpec};
 /// let ranges = Ranges { increments_mm: vec![[10.0, 50.0]; 3], theta_deg: [-180.0, 180.0] };
 /// let runs = experiments(&ranges, &SynthSpec::default(), &mut Rng::new(1));
 /// let labels: Vec<&str> = runs.iter().map(|r| r.label.as_str()).collect();
@@ -593,7 +593,7 @@ pub fn generate(
 /// let text = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n0,\"a, 1\",10,0,0,0,10\n0.5,\"a, 1\",11,0,0,0.1,11\n";
 /// let rec = Recording::read(text.as_bytes(), "rec.csv", 1)?;
 /// let mut out = Vec::new();
-/// ctr_analysis::synth::write_csv(&rec, &mut out)?;
+/// ctr_diagnosis::synth::write_csv(&rec, &mut out)?;
 /// assert_eq!(String::from_utf8(out)?, text);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```

@@ -1,31 +1,14 @@
 //! The diagnosis, run blind on the shared recordings: each must give exactly its
 //! `expected_findings` and a held-out RMS after fitting within 1.25 x its noise floor.
 
-use ctr_analysis::diagnose::{diagnose, Options};
-use ctr_analysis::model::ModelSpec;
-use ctr_formats::{Recording, RobotSpec};
-use serde_json::Value;
-use std::path::PathBuf;
+mod common;
 
-fn shared() -> PathBuf {
-    std::env::var_os("CTR_SHARED_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-        PathBuf::from,
-    )
-}
+use common::{print_trials, recording};
+use ctr_analysis::model::ModelSpec;
+use ctr_diagnosis::{diagnose, Options};
 
 fn check(id: &str) {
-    let dir = shared().join("recordings");
-    let truth: Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.join(format!("{id}.truth.json"))).unwrap(),
-    )
-    .unwrap();
-    let robot = truth["robot_file"]
-        .as_str()
-        .unwrap()
-        .trim_start_matches("shared/data/");
-    let spec = RobotSpec::from_path(&shared().join(robot)).unwrap();
-    let rec = Recording::from_path(&dir.join(format!("{id}.csv")), spec.robot.n_tubes()).unwrap();
+    let (spec, rec, truth) = recording(id);
     let d = diagnose(&ModelSpec::from_spec(&spec), &rec, &Options::default()).unwrap();
     let r = &d.report;
     let found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
@@ -40,17 +23,7 @@ fn check(id: &str) {
         "{id}: found {found:?} (expected {expected:?}); baseline {:.3}/{:.3} -> final {:.3}/{:.3} held out, floor {floor:.3}, noise est {:.3}",
         r.baseline.rms_mm, r.baseline.heldout_rms_mm, r.final_.rms_mm, r.final_.heldout_rms_mm, r.noise.rms_mm
     );
-    for t in &r.tried {
-        eprintln!(
-            "   round {} {:>13}: fit {:.4} held {:.4} bic {:.1} {}",
-            t.round,
-            t.effect.as_str(),
-            t.rms_mm,
-            t.heldout_rms_mm,
-            t.bic_change,
-            t.note
-        );
-    }
+    print_trials(r);
     for f in &r.findings {
         eprintln!("   {} | {} | {}", f.explanation, f.where_, f.parameters);
     }

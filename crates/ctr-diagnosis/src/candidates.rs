@@ -15,11 +15,11 @@
 //! | `latency` | delay of the robot behind its commands (s) |
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
 
-use crate::model::ModelSpec;
+use ctr_analysis::model::ModelSpec;
 use ctr_core::Model;
 use ctr_formats::{
-    Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Registration, SensorOffset,
-    Stiffness,
+    Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Recording, Registration,
+    SensorOffset, Stiffness,
 };
 use serde::Serialize;
 
@@ -67,7 +67,7 @@ impl EffectId {
     /// The contract's id.
     ///
     /// ```
-    /// assert_eq!(ctr_analysis::diagnose::EffectId::JointOffset.as_str(), "joint_offset");
+    /// assert_eq!(ctr_diagnosis::EffectId::JointOffset.as_str(), "joint_offset");
     /// ```
     pub fn as_str(self) -> &'static str {
         match self {
@@ -87,7 +87,7 @@ impl EffectId {
     /// Parses a contract id.
     ///
     /// ```
-    /// use ctr_analysis::diagnose::EffectId;
+    /// use ctr_diagnosis::EffectId;
     /// assert_eq!(EffectId::parse("latency"), Some(EffectId::Latency));
     /// assert_eq!(EffectId::parse("lag"), None);
     /// ```
@@ -99,7 +99,7 @@ impl EffectId {
     /// ids for an unknown one: what `ctr-cli` and `ctr_py` say.
     ///
     /// ```
-    /// use ctr_analysis::diagnose::EffectId;
+    /// use ctr_diagnosis::EffectId;
     /// assert_eq!(EffectId::from_id(" latency"), Ok(EffectId::Latency));
     /// assert!(EffectId::from_id("lag").unwrap_err().starts_with("unknown effect \"lag\""));
     /// ```
@@ -372,3 +372,39 @@ const MAX_LN_FACTOR: f64 = 2.0;
 const MAX_LATENCY_S: f64 = 5.0;
 /// Largest sensor offset component, mm.
 const MAX_SENSOR_OFFSET_MM: f64 = 50.0;
+
+/// Why a candidate cannot be tried on this model and recording, if so.
+pub(crate) fn not_applicable(
+    effect: EffectId,
+    model: &ModelSpec,
+    rec: &Recording,
+) -> Option<String> {
+    let densities = model
+        .robot
+        .tube_params()
+        .iter()
+        .all(|p| p.density_kg_m3.is_some());
+    match effect {
+        EffectId::Latency if !rec.has_time => {
+            Some("the recording has no t_s column: latency cannot be seen".into())
+        }
+        EffectId::Gravity if !densities => {
+            Some("not tried: the robot file gives no density_kg_m3 for every tube".into())
+        }
+        EffectId::Gravity if model.model == Model::Rigid => Some(
+            "not tried on a rigid model: the loaded solver models torsion too, so a gravity \
+             fit would also bring torsion in (torsion is tried first)"
+                .into(),
+        ),
+        EffectId::Gravity if model.effects.clearance.is_some() => {
+            Some("not tried: gravity together with clearance is not modelled".into())
+        }
+        EffectId::Clearance if model.effects.gravity.is_some() => {
+            Some("not tried: clearance together with gravity is not modelled".into())
+        }
+        EffectId::Clearance | EffectId::Friction if model.robot.n_tubes() < 2 => {
+            Some("not tried: one tube has no neighbour".into())
+        }
+        _ => None,
+    }
+}

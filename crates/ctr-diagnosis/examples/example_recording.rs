@@ -4,12 +4,12 @@
 //! tubes (a 2.2 deg kink, largest at a relative angle of 200 deg) and a 0.3 s lag of the
 //! robot behind its commands — plus 0.2 mm tracker noise and a few outliers.
 //!
-//! `cargo run --release -p ctr-analysis --example example_recording > data/examples/liu2023-recording.csv`
+//! `cargo run --release -p ctr-diagnosis --example example_recording > data/examples/liu2023-recording.csv`
 //!
 //! The truth is printed on stderr; `ctr-cli diagnose` is meant to find it blind.
 
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::synth::{generate, write_csv, Ranges, SynthSpec};
+use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec};
 use ctr_formats::{Clearance, Latency, RobotSpec};
 use std::path::Path;
 

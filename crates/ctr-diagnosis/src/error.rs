@@ -1,0 +1,21 @@
+//! Why a diagnosis could not run.
+
+/// Why a diagnosis could not run.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DiagnoseError {
+    /// The user's model cannot be simulated on the recording.
+    Model(String),
+    /// The split leaves no fit rows or no held-out rows.
+    Split(String),
+}
+
+impl std::fmt::Display for DiagnoseError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DiagnoseError::Model(m) => write!(f, "{m}"),
+            DiagnoseError::Split(m) => write!(f, "{m}"),
+        }
+    }
+}
+
+impl std::error::Error for DiagnoseError {}

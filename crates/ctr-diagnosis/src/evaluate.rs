@@ -1,0 +1,57 @@
+//! Evaluation: the tip errors of several models, run by run (the seed paper's Table 2).
+
+use crate::error::DiagnoseError;
+use crate::report::RunErrors;
+use crate::residual::errors;
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
+use ctr_formats::Recording;
+
+/// Mean and largest tip error per run (and over all rows, last) for each model.
+///
+/// ```
+/// use ctr_analysis::model::ModelSpec;
+/// use ctr_diagnosis::evaluate;
+/// use ctr_formats::{Recording, RobotSpec};
+/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+/// let rec = Recording::read("run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\na,50,0,0,0,51\n".as_bytes(), "rec.csv", 1)?;
+/// let table = evaluate(&[ModelSpec::from_spec(&spec)], &rec).unwrap();
+/// assert_eq!(table[0].run, "a");
+/// assert!((table[0].mean_mm[0] - 1.0).abs() < 1e-12);
+/// assert_eq!(table.last().unwrap().run, "all");
+/// # Ok::<(), ctr_formats::Error>(())
+/// ```
+pub fn evaluate(models: &[ModelSpec], rec: &Recording) -> Result<Vec<RunErrors>, DiagnoseError> {
+    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let mut sizes = Vec::with_capacity(models.len());
+    for m in models {
+        let p = predict(m, rec, &all_runs)
+            .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
+        sizes.push(
+            errors(rec, &p.p)
+                .iter()
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .collect::<Vec<f64>>(),
+        );
+    }
+    let row = |label: &str, range: std::ops::Range<usize>| RunErrors {
+        run: label.to_owned(),
+        rows: range.len(),
+        mean_mm: sizes
+            .iter()
+            .map(|s| s[range.clone()].iter().sum::<f64>() / range.len() as f64)
+            .collect(),
+        max_mm: sizes
+            .iter()
+            .map(|s| s[range.clone()].iter().copied().fold(0.0, f64::max))
+            .collect(),
+    };
+    let mut out: Vec<RunErrors> = rec
+        .runs
+        .iter()
+        .map(|r| row(&r.label, r.rows.clone()))
+        .collect();
+    out.push(row("all", 0..rec.rows.len()));
+    Ok(out)
+}

@@ -1,0 +1,71 @@
+//! Diagnosis: where a model and a recording disagree, which left-out physics explains
+//! it, fitted, and the gain shown on rows the fit did not see.
+//!
+//! This crate sits above the row model: it simulates a recording only through
+//! `ctr_analysis::simulate::predict` (a [`ModelSpec`](ctr_analysis::model::ModelSpec):
+//! robot, model kind and effects, run along the recorded commands) and reads and writes
+//! the contract's files through `ctr_formats`. `ctr-cli diagnose` / `calibrate` /
+//! `evaluate` and `ctr_py.diagnose` / `calibrate` / `evaluate` are thin calls of
+//! [`diagnose`], [`calibrate`] and [`evaluate`].
+//!
+//! 1. **Split** ([`Holdout`]): each run is cut into contiguous blocks and every
+//!    `every`-th block (staggered between runs) is held out; or whole runs are held out
+//!    by label. Never random rows: neighbouring samples share their errors. Time effects
+//!    need whole runs, so every run is always simulated; only the residuals of the
+//!    held-out rows are kept from the fit.
+//! 2. **Noise**: estimated from the data, not from the model: the second differences
+//!    of the user model's residual along each run remove any error that varies smoothly
+//!    with the motion, leaving `6 sigma^2` of white tracker noise per axis (a robust
+//!    median-absolute-deviation estimate, so jumps at reversals and outliers do not
+//!    count). Rows repeated at rest give a second estimate where there are enough.
+//! 3. **Locate** ([`locate`]): regressions of the residual on runs, joints, exposed
+//!    lengths, relative angles (periodic), direction of motion and workspace position.
+//! 4. **Explain**: forward selection over the contract's effects the model leaves out
+//!    ([`EffectId`]). Each round fits every remaining candidate's parameters
+//!    (`fit`: robust Levenberg-Marquardt, bounded) with the effects found so far held,
+//!    and the candidate with the lowest held-out error is added if it passes both
+//!    tests: the Bayesian information criterion on the fit rows,
+//!    `N ln(C_new / C_old) + k ln N < 0` (N residual components, k parameters, C the
+//!    robust cost), and a held-out RMS at least [`MIN_HELDOUT_GAIN`] lower. The effects
+//!    found are then refitted together. It stops when no candidate passes, and says
+//!    whether what is left is consistent with the noise estimate.
+//!
+//! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
+//! outliers), `residual` (error vectors and their figures), [`locate`], `candidates`
+//! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose`]),
+//! `calibrate` and `evaluate` (no search), `start` (what both start from and how both
+//! finish), `report` ([`Report`] and its [`summary`](Report::summary)), `prose` (the
+//! words), `options`, `error`. The fits run on the one thread pool,
+//! `ctr_formats::parallel`; results do not depend on the thread count.
+//!
+//! With the `synth` feature (off by default), `synth` generates recordings with
+//! concealed effects: the proof bench of the diagnosis, used by this crate's tests and
+//! by the example that writes the bundled `data/examples/liu2023-recording.csv`.
+
+mod calibrate;
+mod candidates;
+mod error;
+mod evaluate;
+mod fit;
+pub mod locate;
+mod noise;
+mod options;
+mod prose;
+mod report;
+mod residual;
+mod search;
+mod split;
+mod start;
+#[cfg(feature = "synth")]
+pub mod synth;
+
+pub use calibrate::calibrate;
+pub use candidates::EffectId;
+pub use error::DiagnoseError;
+pub use evaluate::evaluate;
+pub use locate::Statement;
+pub use noise::{estimate_noise, OUTLIER_SIGMAS};
+pub use options::Options;
+pub use report::{Diagnosis, Figures, Finding, Noise, Report, RunErrors, Split, Trial};
+pub use search::{diagnose, MIN_HELDOUT_GAIN};
+pub use split::{split, Holdout};

@@ -1,0 +1,265 @@
+//! The search: forward selection over the effects the model leaves out, each round every
+//! remaining candidate fitted (on the thread pool) with the effects found so far, the
+//! best added when the information criterion and the held-out rows both accept it.
+
+use crate::candidates::{not_applicable, EffectId};
+use crate::error::DiagnoseError;
+use crate::fit::{Problem, MAX_FIT_ITERATIONS};
+use crate::locate;
+use crate::options::Options;
+use crate::prose::{explain, parameters};
+use crate::report::{Diagnosis, Figures, Finding, Trial};
+use crate::residual::{errors, figures};
+use crate::start::{sample_period, Start};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
+use ctr_formats::Recording;
+
+/// Smallest relative drop of the held-out RMS for an effect to be added.
+pub const MIN_HELDOUT_GAIN: f64 = 0.02;
+
+/// The best candidate of a round so far.
+struct Best {
+    effect: EffectId,
+    model: ModelSpec,
+    fig: Figures,
+    cost: f64,
+    e: Vec<[f64; 3]>,
+}
+
+/// The trial of a candidate that was not fitted, and why.
+fn not_fitted(round: usize, effect: EffectId, note: String) -> Trial {
+    Trial {
+        round,
+        effect,
+        rms_mm: f64::NAN,
+        heldout_rms_mm: f64::NAN,
+        bic_change: f64::NAN,
+        added: false,
+        note,
+    }
+}
+
+/// Diagnoses `model` against `rec`.
+///
+/// ```no_run
+/// use ctr_diagnosis::{diagnose, Options};
+/// use ctr_analysis::model::ModelSpec;
+/// use ctr_formats::{Recording, RobotSpec};
+/// use std::path::Path;
+/// let spec = RobotSpec::from_path(Path::new("robot.toml"))?;
+/// let rec = Recording::from_path(Path::new("rec.csv"), spec.robot.n_tubes())?;
+/// let d = diagnose(&ModelSpec::from_spec(&spec), &rec, &Options::default())?;
+/// for f in &d.report.findings {
+///     println!("{}: {}", f.effect.as_str(), f.explanation);
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn diagnose(
+    model: &ModelSpec,
+    rec: &Recording,
+    opt: &Options,
+) -> Result<Diagnosis, DiagnoseError> {
+    let start = Start::new(model, rec, &opt.holdout)?;
+    let (held, all_runs, fit_rows) = (&start.held, &start.all_runs, &start.fit_rows);
+    let (e0, baseline) = (&start.e0, start.baseline);
+    let n = model.robot.n_tubes();
+    let huber = start.huber_mm();
+    let threads = ctr_formats::parallel::resolve_threads(opt.threads);
+    let period = sample_period(rec);
+    let n_obs = (3 * fit_rows.len()) as f64;
+
+    let mut current = model.clone();
+    let mut current_fig = baseline;
+    let mut current_e = e0.clone();
+    let mut accepted: Vec<EffectId> = Vec::new();
+    let mut findings = Vec::new();
+    let mut tried = Vec::new();
+    let problem = |base: ModelSpec, blocks: Vec<EffectId>| Problem {
+        base,
+        blocks,
+        rec,
+        runs: all_runs.clone(),
+        rows: fit_rows.clone(),
+        huber_mm: huber,
+        threads,
+        clearance_table: None,
+    };
+    let mut current_cost = problem(current.clone(), vec![])
+        .cost_at(&[])
+        .ok_or_else(|| DiagnoseError::Model("the user model fails on the fit rows".into()))?;
+    for round in 1.. {
+        let mut best: Option<Best> = None;
+        let mut round_trials = Vec::new();
+        let mut todo = Vec::new();
+        for &c in &opt.candidates {
+            if c.present_in(model) || accepted.contains(&c) {
+                continue;
+            }
+            if let Some(note) = not_applicable(c, &current, rec) {
+                if round == 1 {
+                    tried.push(not_fitted(round, c, note));
+                }
+                continue;
+            }
+            todo.push(c);
+        }
+        // every (candidate, start) fit on its own thread of a pool; the fits then use
+        // one thread each
+        let jobs: Vec<(EffectId, Vec<f64>)> = todo
+            .iter()
+            .flat_map(|&c| c.starts(n, period).into_iter().map(move |x0| (c, x0)))
+            .collect();
+        // each candidate is fitted together with the effects found so far, which stay
+        // free: a first effect that soaked up part of another must be able to give it back
+        let held_x: Vec<f64> = accepted.iter().flat_map(|b| b.read(&current)).collect();
+        let with = |c: EffectId| -> Vec<EffectId> { accepted.iter().copied().chain([c]).collect() };
+        let results = ctr_formats::parallel::map(&jobs, threads, |(c, x0)| {
+            let mut p = problem(current.clone(), with(*c));
+            p.threads = 1;
+            let x: Vec<f64> = held_x.iter().chain(x0).copied().collect();
+            p.fit(&x, MAX_FIT_ITERATIONS)
+        });
+        for &c in &todo {
+            let p = problem(current.clone(), with(c));
+            let fitted = jobs
+                .iter()
+                .zip(&results)
+                .filter(|((jc, _), _)| *jc == c)
+                .filter_map(|(_, r)| r.clone())
+                .min_by(|a, b| a.cost.total_cmp(&b.cost));
+            let Some(fitted) = fitted else {
+                round_trials.push(not_fitted(
+                    round,
+                    c,
+                    "the model cannot be simulated with this effect".into(),
+                ));
+                continue;
+            };
+            let m = p.model(&fitted.x);
+            let Ok(pred) = predict(&m, rec, all_runs) else {
+                continue;
+            };
+            let e = errors(rec, &pred.p);
+            let fig = figures(&e, held);
+            let k = c.n_params(n) as f64;
+            let bic = n_obs * (fitted.cost / current_cost).ln() + k * n_obs.ln();
+            round_trials.push(Trial {
+                round,
+                effect: c,
+                rms_mm: fig.rms_mm,
+                heldout_rms_mm: fig.heldout_rms_mm,
+                bic_change: bic,
+                added: false,
+                note: String::new(),
+            });
+            let passes = bic < 0.0
+                && fig.heldout_rms_mm < current_fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN);
+            if passes
+                && best
+                    .as_ref()
+                    .is_none_or(|b| fig.heldout_rms_mm < b.fig.heldout_rms_mm)
+            {
+                best = Some(Best {
+                    effect: c,
+                    model: m,
+                    fig,
+                    cost: fitted.cost,
+                    e,
+                });
+            }
+        }
+        let Some(Best {
+            effect: c,
+            model: m,
+            fig,
+            cost,
+            e,
+        }) = best
+        else {
+            for t in &mut round_trials {
+                if t.note.is_empty() {
+                    t.note = "not added: no gain on held-out rows or the information \
+                              criterion rejects it"
+                        .into();
+                }
+            }
+            tried.extend(round_trials);
+            break;
+        };
+        for t in &mut round_trials {
+            if t.effect == c {
+                t.added = true;
+            } else if t.note.is_empty() {
+                t.note = "another candidate explained more".into();
+            }
+        }
+        tried.extend(round_trials);
+        // refit everything found so far together
+        accepted.push(c);
+        let mut joint_base = model.clone();
+        let x0: Vec<f64> = accepted.iter().flat_map(|b| b.read(&m)).collect();
+        if let EffectId::Torsion = c {
+            joint_base.model = ctr_core::Model::Torsion;
+        }
+        let p = problem(joint_base, accepted.clone());
+        let (m, fig, cost, e) = match p.fit(&x0, MAX_FIT_ITERATIONS) {
+            Some(f) if f.cost < cost => {
+                let mj = p.model(&f.x);
+                match predict(&mj, rec, all_runs) {
+                    Ok(pred) => {
+                        let ej = errors(rec, &pred.p);
+                        (mj, figures(&ej, held), f.cost, ej)
+                    }
+                    Err(_) => (m, fig, cost, e),
+                }
+            }
+            _ => (m, fig, cost, e),
+        };
+        // where: the change the effect makes to the predictions
+        let change: Vec<[f64; 3]> = e
+            .iter()
+            .zip(&current_e)
+            .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+            .collect();
+        let tips: Vec<[f64; 3]> = rec
+            .rows
+            .iter()
+            .zip(&e)
+            .map(|(r, v)| [r.p[0] + v[0], r.p[1] + v[1], r.p[2] + v[2]])
+            .collect();
+        let all_mask = vec![true; rec.rows.len()];
+        let where_ = locate::summary(&locate::locate(rec, &change, &all_mask, &tips));
+        findings.push(Finding {
+            effect: c,
+            explanation: explain(c, &m),
+            where_,
+            parameters: parameters(c, &m),
+            rms_mm_before: current_fig.rms_mm,
+            rms_mm_after: fig.rms_mm,
+            heldout_rms_mm_before: current_fig.heldout_rms_mm,
+            heldout_rms_mm_after: fig.heldout_rms_mm,
+        });
+        // the earlier findings' parameters moved in the joint refit
+        for f in &mut findings {
+            f.parameters = parameters(f.effect, &m);
+            f.explanation = explain(f.effect, &m);
+        }
+        current = m;
+        current_fig = fig;
+        current_cost = cost;
+        current_e = e;
+    }
+    let final_pred = predict(&current, rec, all_runs)
+        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
+    Ok(start.finish(
+        rec,
+        current,
+        findings,
+        current_fig,
+        &current_e,
+        tried,
+        final_pred.failed,
+        |fit_mask| locate::summary(&locate::locate(rec, &current_e, fit_mask, &final_pred.p)),
+    ))
+}

@@ -1,0 +1,146 @@
+//! What a diagnosis and a calibration both start from: the split, the user model's
+//! error on it, the noise estimate and where the error sits; and how both finish: the
+//! report of the fitted model.
+
+use crate::error::DiagnoseError;
+use crate::locate::{self, Statement};
+use crate::noise::{estimate_noise, median, outlier_rows};
+use crate::prose::leftover;
+use crate::report::{Diagnosis, Figures, Finding, Noise, Report, Split, Trial};
+use crate::residual::{errors, figures, inlier_figures};
+use crate::split::{split, Holdout};
+use ctr_analysis::model::ModelSpec;
+use ctr_analysis::simulate::predict;
+use ctr_formats::Recording;
+
+/// Huber threshold of the robust cost, in estimated noise standard deviations per
+/// axis (a 3-D noise vector is below 4 sigma 99.9 % of the time).
+const HUBER_SIGMAS: f64 = 4.0;
+
+/// What a diagnosis and a calibration both start from: the split and the user model's
+/// error on it.
+pub(crate) struct Start {
+    /// Whether each row is held out.
+    pub(crate) held: Vec<bool>,
+    /// The split, in words.
+    pub(crate) split_method: String,
+    /// Every run (all are simulated, whatever is held out).
+    pub(crate) all_runs: Vec<usize>,
+    /// The rows fitted.
+    pub(crate) fit_rows: Vec<usize>,
+    /// The user model's error vectors, every row.
+    pub(crate) e0: Vec<[f64; 3]>,
+    /// The user model's figures.
+    pub(crate) baseline: Figures,
+    /// The noise estimated on the user model's error.
+    pub(crate) noise: Noise,
+    /// Where the user model's error sits.
+    pub(crate) located: Vec<Statement>,
+}
+
+impl Start {
+    /// The split of `rec` by `holdout` and `model`'s error on it.
+    pub(crate) fn new(
+        model: &ModelSpec,
+        rec: &Recording,
+        holdout: &Holdout,
+    ) -> Result<Self, DiagnoseError> {
+        let (held, split_method) = split(rec, holdout)?;
+        let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+        let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+        let base = predict(model, rec, &all_runs)
+            .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
+        let e0 = errors(rec, &base.p);
+        let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
+        Ok(Start {
+            baseline: figures(&e0, &held),
+            noise: estimate_noise(rec, &e0),
+            located: locate::locate(rec, &e0, &fit_mask, &base.p),
+            held,
+            split_method,
+            all_runs,
+            fit_rows,
+            e0,
+        })
+    }
+
+    /// Huber threshold of the fits, mm (none without a noise estimate).
+    pub(crate) fn huber_mm(&self) -> f64 {
+        let sigma = self.noise.sigma_mm_per_axis;
+        if sigma.is_finite() && sigma > 0.0 {
+            HUBER_SIGMAS * sigma
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// The report of the model `fitted`, whose error vectors are `e`: the noise estimated
+    /// again on what it leaves (closer to white), tracker outliers set aside, and what is
+    /// left in words (`where_left` says where, given the fit rows' mask).
+    pub(crate) fn finish(
+        self,
+        rec: &Recording,
+        fitted: ModelSpec,
+        findings: Vec<Finding>,
+        final_: Figures,
+        e: &[[f64; 3]],
+        tried: Vec<Trial>,
+        failed_rows: usize,
+        where_left: impl FnOnce(&[bool]) -> String,
+    ) -> Diagnosis {
+        let again = estimate_noise(rec, e);
+        let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis
+            || !self.noise.sigma_mm_per_axis.is_finite()
+        {
+            again
+        } else {
+            self.noise
+        };
+        let outliers = outlier_rows(e, &noise);
+        let inliers = inlier_figures(e, &self.held, &outliers);
+        let fit_mask: Vec<bool> = self.held.iter().map(|h| !h).collect();
+        let unexplained = leftover(rec, &final_, &inliers, &outliers, &noise, || {
+            where_left(&fit_mask)
+        });
+        Diagnosis {
+            report: Report {
+                baseline: self.baseline,
+                findings,
+                final_,
+                unexplained,
+                noise,
+                split: Split {
+                    method: self.split_method,
+                    fit_rows: self.fit_rows.len(),
+                    heldout_rows: rec.rows.len() - self.fit_rows.len(),
+                },
+                located: self.located,
+                tried,
+                failed_rows,
+                outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
+                final_inliers: inliers,
+            },
+            fitted,
+        }
+    }
+}
+
+/// Median time step between a run's rows (s).
+pub(crate) fn sample_period(rec: &Recording) -> f64 {
+    let mut dt: Vec<f64> = rec
+        .runs
+        .iter()
+        .flat_map(|r| {
+            let rows = &rec.rows[r.rows.clone()];
+            rows.windows(2)
+                .map(|w| w[1].t_s - w[0].t_s)
+                .filter(|d| *d > 0.0)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    if dt.is_empty() {
+        f64::NAN
+    } else {
+        median(&mut dt)
+    }
+}
