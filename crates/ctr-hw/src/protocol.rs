@@ -62,12 +62,12 @@ pub const HEADER: [u8; 4] = [0xFF, 0xFF, 0xFD, 0x00];
 /// ```
 pub const BROADCAST_ID: u8 = 0xFE;
 
-/// The largest ID a single device may have.
+/// The largest ID a single device may have (the robot file's largest `motor_id`).
 ///
 /// ```
 /// assert_eq!(ctr_hw::protocol::MAX_DEVICE_ID, 252);
 /// ```
-pub const MAX_DEVICE_ID: u8 = 0xFC;
+pub const MAX_DEVICE_ID: u8 = ctr_formats::MAX_MOTOR_ID;
 
 /// Instruction codes of Protocol 2.0 (the subset this crate uses, plus the status code).
 ///

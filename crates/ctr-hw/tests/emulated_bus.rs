@@ -3,7 +3,8 @@
 
 use std::time::{Duration, Instant};
 
-use ctr_hw::actuation::{Actuation, JointActuation};
+use ctr_formats::ActuatedJoint;
+use ctr_hw::actuation::Actuation;
 use ctr_hw::bus::{Bus, BusConfig, BusError};
 use ctr_hw::control_table as ct;
 use ctr_hw::emulator::{Emulator, EmulatorConfig, Fault, PtyEmulator};
@@ -36,10 +37,10 @@ fn connect(pty: &PtyEmulator) -> Bus<SerialTransport> {
 
 fn four_joints() -> Actuation {
     Actuation::new(vec![
-        JointActuation::rotation("alpha1", 1, -180.0, 180.0, 360.0),
-        JointActuation::feed("beta1", 2, 8.0, -60.0, 0.0, 40.0),
-        JointActuation::rotation("alpha2", 3, -180.0, 180.0, 360.0),
-        JointActuation::feed("beta2", 4, 8.0, -30.0, 0.0, 40.0),
+        ActuatedJoint::feed(1, 1, 8.0, -60.0, 0.0, 40.0),
+        ActuatedJoint::rotation(1, 2, -180.0, 180.0, 360.0),
+        ActuatedJoint::feed(2, 3, 8.0, -30.0, 0.0, 40.0),
+        ActuatedJoint::rotation(2, 4, -180.0, 180.0, 360.0),
     ])
     .unwrap()
 }
@@ -73,9 +74,9 @@ fn rig_moves_and_reads_back() {
     let emu = pty.emulator().clone();
     let mut rig = Rig::new(connect(&pty), four_joints(), RigConfig::default());
     rig.enable().unwrap();
-    let targets = [90.0, -8.0, -45.0, -4.0];
+    let targets = [-8.0, 90.0, -4.0, -45.0];
     let ticks = rig.move_to(&targets).unwrap();
-    assert_eq!(ticks, [1024, -4096, -512, -2048]);
+    assert_eq!(ticks, [-4096, 1024, -2048, -512]);
     let reached = rig.wait_until_still(Duration::from_secs(5)).unwrap();
     assert_eq!(reached, targets);
     for (id, goal) in (1..=4).zip(ticks) {
@@ -246,7 +247,7 @@ fn overload_stops_the_rig_holds_and_switches_torque_off() {
         },
     );
     rig.enable().unwrap();
-    rig.move_to(&[170.0, -50.0, 170.0, -25.0]).unwrap();
+    rig.move_to(&[-50.0, 170.0, -25.0, 170.0]).unwrap();
     std::thread::sleep(Duration::from_millis(20));
     emu.inject(Some(2), Fault::Overload);
     let err = rig.positions().unwrap_err();
@@ -294,7 +295,7 @@ fn every_goal_is_applied_exactly_once_under_mixed_faults() {
         emu.inject(motor, fault);
         // Every goal differs from the one before it, so each must be applied.
         let s = (step + 1) as f64;
-        let targets = [10.0 * s, -2.0 * s, -10.0 * s, -s - 0.5];
+        let targets = [-2.0 * s, 10.0 * s, -s - 0.5, -10.0 * s];
         sent.push(rig.move_to(&targets).unwrap());
     }
     rig.wait_until_still(Duration::from_secs(5)).unwrap();
