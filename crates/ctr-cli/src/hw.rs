@@ -160,19 +160,6 @@ fn connect(
     Ok(Rig::new(bus, robot.actuation.clone(), config))
 }
 
-/// Reads a register; an alert status (hardware error) still carries its value.
-fn read_register(
-    bus: &mut Bus<SerialTransport>,
-    id: u8,
-    address: u16,
-    length: u16,
-) -> Result<Vec<u8>, BusError> {
-    match bus.read(id, address, length) {
-        Err(BusError::Alert { params, .. }) => Ok(params),
-        other => other,
-    }
-}
-
 /// `hw ping`: one CSV row per joint with its motor's identity and state.
 fn ping(args: PingArgs) -> Result<(), Failure> {
     let robot = RigRobot::load(&args.connection.robot)?;
@@ -190,9 +177,9 @@ fn ping(args: PingArgs) -> Result<(), Failure> {
             Err(e) => Err(e),
         };
         let state = identity.and_then(|(model, firmware)| {
-            let torque = read_register(bus, id, ct::TORQUE_ENABLE, 1)?[0];
-            let error = read_register(bus, id, ct::HARDWARE_ERROR_STATUS, 1)?[0];
-            let p = read_register(bus, id, ct::PRESENT_POSITION, ct::PRESENT_POSITION_LEN)?;
+            let torque = bus.read_despite_alert(id, ct::TORQUE_ENABLE, 1)?[0];
+            let error = bus.read_despite_alert(id, ct::HARDWARE_ERROR_STATUS, 1)?[0];
+            let p = bus.read_despite_alert(id, ct::PRESENT_POSITION, ct::PRESENT_POSITION_LEN)?;
             let ticks = i32::from_le_bytes([p[0], p[1], p[2], p[3]]);
             Ok((
                 model,

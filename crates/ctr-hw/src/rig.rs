@@ -604,19 +604,6 @@ impl<T: Transport> Rig<T> {
         Ok(values.iter().map(|v| le_i32(v)).collect())
     }
 
-    /// Reads a register, accepting the data of an alert status.
-    fn read_despite_alert(
-        &mut self,
-        id: u8,
-        address: u16,
-        length: u16,
-    ) -> Result<Vec<u8>, BusError> {
-        match self.bus.read(id, address, length) {
-            Err(BusError::Alert { params, .. }) => Ok(params),
-            other => other,
-        }
-    }
-
     /// Writes a register; an alert status still means the write was applied.
     fn write_despite_alert(&mut self, id: u8, address: u16, data: &[u8]) -> Result<(), BusError> {
         match self.bus.write(id, address, data) {
@@ -626,8 +613,11 @@ impl<T: Transport> Rig<T> {
     }
 
     fn hold_motor(&mut self, id: u8) -> Result<i32, BusError> {
-        let present =
-            le_i32(&self.read_despite_alert(id, ct::PRESENT_POSITION, ct::PRESENT_POSITION_LEN)?);
+        let present = le_i32(&self.bus.read_despite_alert(
+            id,
+            ct::PRESENT_POSITION,
+            ct::PRESENT_POSITION_LEN,
+        )?);
         self.write_despite_alert(id, ct::GOAL_POSITION, &present.to_le_bytes())?;
         Ok(present)
     }
@@ -648,7 +638,10 @@ impl<T: Transport> Rig<T> {
             }
         }
         for &id in &answering {
-            if let Ok(status) = self.read_despite_alert(id, ct::HARDWARE_ERROR_STATUS, 1) {
+            if let Ok(status) = self
+                .bus
+                .read_despite_alert(id, ct::HARDWARE_ERROR_STATUS, 1)
+            {
                 if status[0] != 0 {
                     fault.hardware_errors.push((id, status[0]));
                 }
