@@ -29,7 +29,7 @@
 //! use ctr_hw::rig::{Rig, RigConfig, RigError};
 //! use std::time::Duration;
 //!
-//! let emu = Emulator::new(EmulatorConfig { time_scale: 0.0, ..EmulatorConfig::default() });
+//! let emu = Emulator::new(EmulatorConfig::frozen());
 //! let actuation = Actuation::new(vec![
 //!     ActuatedJoint::feed(1, 1, 8.0, 0.0, 60.0, 10.0),      // s1 on motor 1
 //!     ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0),   // theta1 on motor 2
@@ -675,7 +675,8 @@ fn le_i32(bytes: &[u8]) -> i32 {
 mod tests {
     use super::*;
     use crate::bus::BusConfig;
-    use crate::emulator::{EmulatedLink, Emulator, EmulatorConfig, Fault};
+    use crate::emulator::testing::{bus, frozen};
+    use crate::emulator::{EmulatedLink, Emulator, Fault};
     use crate::protocol::instruction;
     use ctr_formats::ActuatedJoint;
 
@@ -690,18 +691,7 @@ mod tests {
     }
 
     fn rig(emu: &Emulator, config: RigConfig) -> Rig<EmulatedLink> {
-        Rig::new(
-            Bus::new(emu.link(), BusConfig::default()),
-            four_joints(),
-            config,
-        )
-    }
-
-    fn frozen() -> Emulator {
-        Emulator::new(EmulatorConfig {
-            time_scale: 0.0,
-            ..EmulatorConfig::default()
-        })
+        Rig::new(bus(emu), four_joints(), config)
     }
 
     fn goal_writes(emu: &Emulator) -> usize {

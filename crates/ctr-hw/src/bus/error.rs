@@ -4,8 +4,9 @@
 
 use std::fmt;
 
-use crate::protocol::MAX_DEVICE_ID;
-use crate::protocol::{hex, instruction, Packet, ProtocolError, StatusError, BROADCAST_ID};
+use crate::protocol::{
+    hex, instruction, Packet, ProtocolError, StatusError, BROADCAST_ID, MAX_DEVICE_ID,
+};
 use crate::transport::TransportError;
 
 /// A packet as sent, for error reports: its target, instruction and bytes.

@@ -458,11 +458,8 @@ impl<T: Transport> Bus<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::{ErrorCode, ProtocolError, StatusError};
+    use crate::protocol::{ErrorCode, ProtocolError, StatusError, INSTRUCTION_OFFSET};
     use crate::transport::MockTransport;
-
-    /// Offset of the instruction byte in a packet (after header, ID and length).
-    const INSTRUCTION_OFFSET: usize = 7;
 
     pub(super) fn status(id: u8, error: u8, params: &[u8]) -> Vec<u8> {
         StatusPacket::new(id, StatusError(error), params.to_vec())

@@ -87,11 +87,11 @@ pub const BROADCAST_ID: u8 = 0xFE;
 pub const MAX_DEVICE_ID: u8 = ctr_formats::MAX_MOTOR_ID;
 
 /// Offset of the ID byte in a packet, after the header.
-const ID_OFFSET: usize = 4;
+pub(crate) const ID_OFFSET: usize = 4;
 /// Offset of the two-byte length field.
 const LENGTH_OFFSET: usize = 5;
 /// Offset of the instruction byte: the header, the ID and the length field come first.
-const INSTRUCTION_OFFSET: usize = 7;
+pub(crate) const INSTRUCTION_OFFSET: usize = 7;
 /// Bytes of the CRC that ends every packet.
 const CRC_LEN: usize = 2;
 /// The smallest length field: the instruction byte and the CRC.
