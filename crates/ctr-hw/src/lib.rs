@@ -34,3 +34,8 @@ pub mod emulator;
 pub mod protocol;
 pub mod rig;
 pub mod transport;
+
+/// The rig set-up shared with the integration tests.
+#[cfg(test)]
+#[path = "../tests/common/mod.rs"]
+mod test_rigs;

@@ -678,16 +678,11 @@ mod tests {
     use crate::emulator::testing::{bus, frozen};
     use crate::emulator::{EmulatedLink, Emulator, Fault};
     use crate::protocol::instruction;
-    use ctr_formats::ActuatedJoint;
+    use crate::test_rigs::two_tubes;
 
+    /// Feeds at 10 mm/s, rotations at 90 degrees/s.
     fn four_joints() -> Actuation {
-        Actuation::new(vec![
-            ActuatedJoint::feed(1, 1, 8.0, -60.0, 0.0, 10.0),
-            ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0),
-            ActuatedJoint::feed(2, 3, 8.0, -30.0, 0.0, 10.0),
-            ActuatedJoint::rotation(2, 4, -180.0, 180.0, 90.0),
-        ])
-        .unwrap()
+        Actuation::new(two_tubes(10.0, 90.0)).unwrap()
     }
 
     fn rig(emu: &Emulator, config: RigConfig) -> Rig<EmulatedLink> {

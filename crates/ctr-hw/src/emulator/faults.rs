@@ -8,7 +8,7 @@ use crate::protocol::INSTRUCTION_OFFSET;
 /// The mask XORed into a status packet's last CRC byte by [`Fault::CorruptReplyCrc`].
 const CRC_CORRUPTION: u8 = 0x5A;
 
-/// A fault to inject, once, with [`Emulator::inject`].
+/// A fault to inject, once, with [`Emulator::inject`](super::Emulator::inject).
 ///
 /// ```
 /// use ctr_hw::emulator::{Emulator, EmulatorConfig, Fault};
@@ -152,13 +152,12 @@ mod tests {
     use super::*;
     use crate::bus::BusError;
     use crate::control_table as ct;
-    use crate::emulator::testing::{bus, frozen};
+    use crate::emulator::testing::{frozen, frozen_bus};
     use crate::protocol::{Decoder, ErrorCode, Packet};
 
     #[test]
     fn overload_sets_the_alert_until_reboot() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         bus.write(4, ct::TORQUE_ENABLE, &[1]).unwrap();
         emu.inject(Some(4), Fault::Overload);
         assert_eq!(emu.torque_enabled(4), Some(false));
@@ -179,8 +178,7 @@ mod tests {
 
     #[test]
     fn faults_act_once_on_the_right_motor() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         emu.inject(Some(2), Fault::NoReply);
         assert!(bus.ping(1).is_ok());
         assert_eq!(emu.pending_faults(), 1);
@@ -216,8 +214,7 @@ mod tests {
 
     #[test]
     fn scheduled_faults_wait_for_the_goal_count() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         emu.inject_after_goals(Some(3), Fault::NoReply, 2);
         emu.inject_after_goals(None, Fault::Overload, 3);
         let goal = |n: i32| n.to_le_bytes();

@@ -448,4 +448,11 @@ pub(crate) mod testing {
     pub(crate) fn bus(emu: &Emulator) -> Bus<EmulatedLink> {
         Bus::new(emu.link(), BusConfig::default())
     }
+
+    /// A frozen emulator and a bus on an in-process link to it.
+    pub(crate) fn frozen_bus() -> (Emulator, Bus<EmulatedLink>) {
+        let emu = frozen();
+        let bus = bus(&emu);
+        (emu, bus)
+    }
 }

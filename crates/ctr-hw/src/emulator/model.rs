@@ -330,13 +330,12 @@ fn sync_write_entries(params: &[u8]) -> Option<SyncWriteEntries> {
 mod tests {
     use crate::bus::BusError;
     use crate::control_table as ct;
-    use crate::emulator::testing::{bus, frozen};
+    use crate::emulator::testing::{frozen, frozen_bus};
     use crate::protocol::{instruction, Decoder, Packet, BROADCAST_ID};
 
     #[test]
     fn answers_ping_read_and_write() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         for id in 1..=4 {
             let reply = bus.ping(id).unwrap();
             assert_eq!((reply.model, reply.firmware), (1020, 45));
@@ -353,8 +352,7 @@ mod tests {
 
     #[test]
     fn sync_instructions() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         let one = [1u8];
         bus.sync_write(ct::TORQUE_ENABLE, &[(1, &one[..]), (3, &one[..])])
             .unwrap();

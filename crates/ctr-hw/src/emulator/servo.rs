@@ -279,13 +279,12 @@ mod tests {
 
     use crate::bus::BusError;
     use crate::control_table as ct;
-    use crate::emulator::testing::{bus, frozen};
+    use crate::emulator::testing::frozen_bus;
     use crate::protocol::ErrorCode;
 
     #[test]
     fn enforces_access_rules() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         let code = |result: Result<(), BusError>| match result {
             Err(BusError::Device { error, .. }) => error.code(),
             other => panic!("unexpected {other:?}"),
@@ -315,8 +314,7 @@ mod tests {
 
     #[test]
     fn moves_with_velocity_and_acceleration_limits() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         // 100 units = 22.9 rpm = 1563.3 ticks/s; 20 units = 71.5 rpm/s... per second.
         bus.write(1, ct::PROFILE_VELOCITY, &100u32.to_le_bytes())
             .unwrap();
@@ -354,8 +352,7 @@ mod tests {
 
     #[test]
     fn torque_off_stops_motion() {
-        let emu = frozen();
-        let mut bus = bus(&emu);
+        let (emu, mut bus) = frozen_bus();
         bus.write(1, ct::TORQUE_ENABLE, &[1]).unwrap();
         bus.write(1, ct::GOAL_POSITION, &100_000i32.to_le_bytes())
             .unwrap();

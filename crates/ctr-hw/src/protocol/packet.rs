@@ -8,7 +8,7 @@ use super::{
 };
 
 /// A decoded packet: an instruction packet, or a status packet before its error byte is
-/// split off (see [`StatusPacket::from_packet`]).
+/// split off (see [`StatusPacket::from_packet`](super::StatusPacket::from_packet)).
 ///
 /// ```
 /// use ctr_hw::protocol::{Packet, instruction};
