@@ -15,6 +15,8 @@ use crate::protocol::{
     instruction, ErrorCode, Frame, Packet, StatusError, StatusPacket, BROADCAST_ID, ID_OFFSET,
 };
 
+/// Parameter bytes of an address.
+const ADDRESS_PARAMS: usize = 2;
 /// Parameter bytes of an address and a length (two bytes each).
 const RANGE_PARAMS: usize = 4;
 /// The shortest integration step, seconds (a zero step would never end).
@@ -147,7 +149,7 @@ impl Model {
             instruction::PING => self.motors.iter().map(|m| m.id).collect(),
             instruction::SYNC_READ => packet
                 .params
-                .get(4..)
+                .get(RANGE_PARAMS..)
                 .unwrap_or(&[])
                 .iter()
                 .copied()
@@ -195,7 +197,7 @@ impl Model {
             instruction::READ => {
                 let id = targets[0];
                 let result = match address_and_length(params) {
-                    Some((address, length)) if params.len() == 4 => self
+                    Some((address, length)) if params.len() == RANGE_PARAMS => self
                         .motor(id)
                         .map_or(Err(ErrorCode::Access), |m| m.read(address, length)),
                     _ => Err(ErrorCode::DataLength),
@@ -204,11 +206,11 @@ impl Model {
             }
             instruction::WRITE => {
                 let id = targets[0];
-                let result = if params.len() < 3 {
+                let result = if params.len() <= ADDRESS_PARAMS {
                     Err(ErrorCode::DataLength)
                 } else {
                     let address = u16::from_le_bytes([params[0], params[1]]);
-                    self.write(id, address, &params[2..], instruction::WRITE)
+                    self.write(id, address, &params[ADDRESS_PARAMS..], instruction::WRITE)
                         .map(|()| Vec::new())
                 };
                 vec![(id, result)]
