@@ -12,7 +12,7 @@ use crate::cli::{
 };
 use crate::Failure;
 use ctr_formats::{JointId, JointTable, RecordingWriter, RobotSpec};
-use ctr_hw::actuation::{Actuation, JointActuation, JointKind};
+use ctr_hw::actuation::Actuation;
 use ctr_hw::bus::{Bus, BusConfig, BusError};
 use ctr_hw::control_table as ct;
 use ctr_hw::emulator::{Emulator, EmulatorConfig};
@@ -92,33 +92,13 @@ impl RigRobot {
     fn load(path: &Path) -> Result<RigRobot, Failure> {
         let spec = RobotSpec::from_path(path).map_err(|e| input(e.to_string()))?;
         let file = path.display().to_string();
-        let Some(joints) = &spec.actuation else {
+        let Some(joints) = spec.actuation.clone() else {
             return Err(input(format!(
                 "{file}: no [actuation] section; hw commands need one [[actuation.joint]] per joint (s1, theta1, ...; see data/FORMATS-EXTENSION.md)"
             )));
         };
-        let actuation = Actuation::new(
-            joints
-                .iter()
-                .map(|j| JointActuation {
-                    name: j.name.clone(),
-                    motor_id: j.motor_id,
-                    kind: match j.kind {
-                        ctr_formats::ActuatorKind::Feed => JointKind::Feed,
-                        ctr_formats::ActuatorKind::Rotation => JointKind::Rotation,
-                    },
-                    ticks_per_rev: j.ticks_per_rev,
-                    mm_per_rev: j.mm_per_rev,
-                    gear_ratio: j.gear_ratio,
-                    direction: j.direction,
-                    zero_offset_ticks: j.zero_offset_ticks,
-                    min: j.min,
-                    max: j.max,
-                    max_speed: j.max_speed,
-                })
-                .collect(),
-        )
-        .map_err(|e| input(format!("{file}: actuation: {e}")))?;
+        // The reader validated the joints by the same rules: this cannot fail.
+        let actuation = Actuation::new(joints).map_err(|e| input(format!("{file}: {e}")))?;
         Ok(RigRobot { spec, actuation })
     }
 
@@ -180,19 +160,6 @@ fn connect(
     Ok(Rig::new(bus, robot.actuation.clone(), config))
 }
 
-/// Reads a register; an alert status (hardware error) still carries its value.
-fn read_register(
-    bus: &mut Bus<SerialTransport>,
-    id: u8,
-    address: u16,
-    length: u16,
-) -> Result<Vec<u8>, BusError> {
-    match bus.read(id, address, length) {
-        Err(BusError::Alert { params, .. }) => Ok(params),
-        other => other,
-    }
-}
-
 /// `hw ping`: one CSV row per joint with its motor's identity and state.
 fn ping(args: PingArgs) -> Result<(), Failure> {
     let robot = RigRobot::load(&args.connection.robot)?;
@@ -210,9 +177,9 @@ fn ping(args: PingArgs) -> Result<(), Failure> {
             Err(e) => Err(e),
         };
         let state = identity.and_then(|(model, firmware)| {
-            let torque = read_register(bus, id, ct::TORQUE_ENABLE, 1)?[0];
-            let error = read_register(bus, id, ct::HARDWARE_ERROR_STATUS, 1)?[0];
-            let p = read_register(bus, id, ct::PRESENT_POSITION, ct::PRESENT_POSITION_LEN)?;
+            let torque = bus.read_despite_alert(id, ct::TORQUE_ENABLE, 1)?[0];
+            let error = bus.read_despite_alert(id, ct::HARDWARE_ERROR_STATUS, 1)?[0];
+            let p = bus.read_despite_alert(id, ct::PRESENT_POSITION, ct::PRESENT_POSITION_LEN)?;
             let ticks = i32::from_le_bytes([p[0], p[1], p[2], p[3]]);
             Ok((
                 model,

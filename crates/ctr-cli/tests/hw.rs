@@ -8,19 +8,16 @@
 //! for a loaded machine.
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, ChildStdin, Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+mod common;
+use common::{cli, repo, stderr};
+
 /// Longest any single command may take before the test fails (and kills it).
 const DEADLINE: Duration = Duration::from_secs(60);
-
-fn repo(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(rel)
-}
 
 fn rig_toml() -> String {
     repo("tests/cli/hw/rig.toml").display().to_string()
@@ -28,10 +25,6 @@ fn rig_toml() -> String {
 
 fn trajectory() -> String {
     repo("tests/cli/hw/trajectory.csv").display().to_string()
-}
-
-fn cli() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ctr-cli"))
 }
 
 /// `ctr-cli hw emulate ...` running in the background; killed on drop.
@@ -53,7 +46,6 @@ impl Emulator {
             .args(extra)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
             .spawn()
             .unwrap();
         let stdin = child.stdin.take();
@@ -93,6 +85,68 @@ impl Emulator {
         all.extend_from_slice(args);
         run(&all)
     }
+
+    /// `hw run --joints JOINTS -o RECORDING EXTRA...`.
+    fn run_to(&self, joints: &str, recording: &str, extra: &[&str]) -> Output {
+        let mut args = vec!["--joints", joints, "-o", recording];
+        args.extend_from_slice(extra);
+        self.hw("run", &args)
+    }
+
+    /// `hw run` of the rig's trajectory (`tests/cli/hw/trajectory.csv`) into `recording`.
+    fn record(&self, recording: &str, extra: &[&str]) -> Output {
+        self.run_to(&trajectory(), recording, extra)
+    }
+}
+
+/// A temporary directory for a test's files, removed when dropped.
+struct Scratch(tempfile::TempDir);
+
+impl Scratch {
+    fn new() -> Scratch {
+        Scratch(tempfile::tempdir().unwrap())
+    }
+
+    /// The path of `name` in the directory, as an argument.
+    fn file(&self, name: &str) -> String {
+        self.0.path().join(name).to_str().unwrap().to_owned()
+    }
+
+    /// Writes `text` to `name` and returns its path.
+    fn write(&self, name: &str, text: &str) -> String {
+        let path = self.file(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+}
+
+/// Plays the rig's trajectory on an emulator with `--fault` for each of `faults`: the
+/// emulator (to look at the motors afterwards), the run's output and the recording.
+fn run_with_faults(faults: &[&str], extra: &[&str]) -> (Emulator, Output, String) {
+    let specs: Vec<&str> = faults.iter().flat_map(|f| ["--fault", f]).collect();
+    let emulator = Emulator::start(&specs);
+    let dir = Scratch::new();
+    let recording = dir.file("recording.csv");
+    let o = emulator.record(&recording, extra);
+    let text = std::fs::read_to_string(&recording).unwrap();
+    (emulator, o, text)
+}
+
+/// Checks that a command failed with `code` and one line on stderr containing every
+/// part; returns that line.
+fn one_line_failure(o: &Output, code: i32, parts: &[&str]) -> String {
+    assert_eq!(o.status.code(), Some(code), "{}", stderr(o));
+    let err = stderr(o);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for part in parts {
+        assert!(err.contains(part), "`{part}` not in: {err}");
+    }
+    err
+}
+
+/// Checks that a command succeeded.
+fn assert_ok(o: &Output) {
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(o));
 }
 
 impl Drop for Emulator {
@@ -127,10 +181,6 @@ fn run(args: &[&str]) -> Output {
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// A CSV text as header and rows of strings.
@@ -200,7 +250,7 @@ fn trajectory_rows() -> Vec<[f64; 4]> {
 /// `hw ping` rows as (joint, torque, hardware_error, position).
 fn ping(emulator: &Emulator) -> Vec<(String, String, String, f64)> {
     let o = emulator.hw("ping", &[]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_ok(&o);
     let (header, rows) = table(&stdout(&o));
     assert_eq!(
         header.join(","),
@@ -227,22 +277,20 @@ fn ping_move_run_and_home_against_the_emulator() {
 
     // move, by name=value
     let o = emulator.hw("move", &["--joints", "s1=20,theta1=90,s2_mm=70,theta2=-45"]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_ok(&o);
     assert_eq!(
         stdout(&o),
         "s1_mm,theta1_deg,s2_mm,theta2_deg\n20,90,70,-45\n"
     );
 
     // move, by a one-row joint file
-    let dir = tempfile::tempdir().unwrap();
-    let one_row = dir.path().join("one.csv");
-    std::fs::write(
-        &one_row,
+    let dir = Scratch::new();
+    let one_row = dir.write(
+        "one.csv",
         "theta2_deg,s2_mm,theta1_deg,s1_mm\n10,60,-30,15\n",
-    )
-    .unwrap();
-    let o = emulator.hw("move", &["--joints", one_row.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    );
+    let o = emulator.hw("move", &["--joints", &one_row]);
+    assert_ok(&o);
     let (_, rows) = table(&stdout(&o));
     let reached: Vec<f64> = rows[0].iter().map(|v| num(v)).collect();
     for ((got, want), column) in reached.iter().zip([15.0, -30.0, 60.0, 10.0]).zip(JOINTS) {
@@ -250,21 +298,15 @@ fn ping_move_run_and_home_against_the_emulator() {
     }
 
     // run a trajectory
-    let recording = dir.path().join("recording.csv");
-    let o = emulator.hw(
-        "run",
-        &["--joints", &trajectory(), "-o", recording.to_str().unwrap()],
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let recording = dir.file("recording.csv");
+    let o = emulator.record(&recording, &[]);
+    assert_ok(&o);
     assert!(o.stdout.is_empty() && o.stderr.is_empty());
     let text = std::fs::read_to_string(&recording).unwrap();
     check_recording(&text, "trajectory", &trajectory_rows());
 
     // a recording is never replaced by accident
-    let o = emulator.hw(
-        "run",
-        &["--joints", &trajectory(), "-o", recording.to_str().unwrap()],
-    );
+    let o = emulator.record(&recording, &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("exists already"), "{}", stderr(&o));
     assert_eq!(std::fs::read_to_string(&recording).unwrap(), text);
@@ -279,36 +321,24 @@ fn ping_move_run_and_home_against_the_emulator() {
 
     // home
     let o = emulator.hw("home", &[]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_ok(&o);
     assert_eq!(stdout(&o), "s1_mm,theta1_deg,s2_mm,theta2_deg\n0,0,0,0\n");
 }
 
 #[test]
 fn timed_trajectory_follows_t_s_and_writes_to_stdout() {
     let emulator = Emulator::start(&[]);
-    let dir = tempfile::tempdir().unwrap();
-    let timed = dir.path().join("timed.csv");
-    std::fs::write(
-        &timed,
+    let dir = Scratch::new();
+    let timed = dir.write(
+        "timed.csv",
         "t_s,s1_mm,theta1_deg,s2_mm,theta2_deg\n\
          1.0,20,0,70,0\n\
          1.3,21,10,71,-10\n\
          1.6,22,20,72,-20\n",
-    )
-    .unwrap();
-    let started = Instant::now();
-    let o = emulator.hw(
-        "run",
-        &[
-            "--joints",
-            timed.to_str().unwrap(),
-            "-o",
-            "-",
-            "--run",
-            "timed, 1",
-        ],
     );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let started = Instant::now();
+    let o = emulator.run_to(&timed, "-", &["--run", "timed, 1"]);
+    assert_ok(&o);
     assert!(started.elapsed() >= Duration::from_millis(600));
     let text = stdout(&o);
     check_recording(
@@ -331,26 +361,18 @@ fn timed_trajectory_follows_t_s_and_writes_to_stdout() {
 fn overload_stops_the_rig_names_the_packet_and_keeps_the_recording() {
     // Motor 2 (theta1) overloads with its fourth goal: the hold at enable is the first,
     // so during the third row.
-    let emulator = Emulator::start(&["--fault", "overload:2@4"]);
-    let dir = tempfile::tempdir().unwrap();
-    let recording = dir.path().join("recording.csv");
-    let o = emulator.hw(
-        "run",
-        &["--joints", &trajectory(), "-o", recording.to_str().unwrap()],
+    let (emulator, o, text) = run_with_faults(&["overload:2@4"], &[]);
+    one_line_failure(
+        &o,
+        1,
+        &[
+            "error: ",
+            "trajectory.csv:4: rig stopped: ID 2 raised a hardware alert answering SYNC_READ (broadcast) [FF FF FD 00 FE ",
+            "; status [FF FF FD 00 02 ",
+            "; ID 2 hardware error 0x20 (overload); holding IDs 1, 2, 3, 4",
+            "recording.csv keeps 2 rows)",
+        ],
     );
-    assert_eq!(o.status.code(), Some(1));
-    let err = stderr(&o);
-    assert_eq!(err.lines().count(), 1, "{err}");
-    for part in [
-        "error: ",
-        "trajectory.csv:4: rig stopped: ID 2 raised a hardware alert answering SYNC_READ (broadcast) [FF FF FD 00 FE ",
-        "; status [FF FF FD 00 02 ",
-        "; ID 2 hardware error 0x20 (overload); holding IDs 1, 2, 3, 4",
-        "recording.csv keeps 2 rows)",
-    ] {
-        assert!(err.contains(part), "`{part}` not in: {err}");
-    }
-    let text = std::fs::read_to_string(&recording).unwrap();
     check_recording(&text, "trajectory", &trajectory_rows()[..2]);
     // Held, not switched off: torque stays on except on the overloaded motor.
     let torque: Vec<(String, String, String)> = ping(&emulator)
@@ -370,19 +392,7 @@ fn overload_stops_the_rig_names_the_packet_and_keeps_the_recording() {
 
 #[test]
 fn torque_off_on_fault_switches_every_motor_off() {
-    let emulator = Emulator::start(&["--fault", "overload:3@2"]);
-    let dir = tempfile::tempdir().unwrap();
-    let recording = dir.path().join("recording.csv");
-    let o = emulator.hw(
-        "run",
-        &[
-            "--joints",
-            &trajectory(),
-            "-o",
-            recording.to_str().unwrap(),
-            "--torque-off-on-fault",
-        ],
-    );
+    let (emulator, o, text) = run_with_faults(&["overload:3@2"], &["--torque-off-on-fault"]);
     assert_eq!(o.status.code(), Some(1));
     let err = stderr(&o);
     assert!(
@@ -394,71 +404,40 @@ fn torque_off_on_fault_switches_every_motor_off() {
             && err.trim_end().ends_with("recording.csv keeps 0 rows)"),
         "{err}"
     );
-    check_recording(&std::fs::read_to_string(&recording).unwrap(), "", &[]);
+    check_recording(&text, "", &[]);
     assert!(ping(&emulator).iter().all(|m| m.1 == "off"));
 }
 
 #[test]
 fn a_silent_motor_stops_the_rig_after_bounded_retries() {
     // Motor 3 (s2) stops answering after its third goal (the second row's).
-    let emulator = Emulator::start(&["--fault", "no-reply:3@3x99"]);
-    let dir = tempfile::tempdir().unwrap();
-    let recording = dir.path().join("recording.csv");
-    let o = emulator.hw(
-        "run",
-        &["--joints", &trajectory(), "-o", recording.to_str().unwrap()],
+    let (_emulator, o, text) = run_with_faults(&["no-reply:3@3x99"], &[]);
+    one_line_failure(
+        &o,
+        1,
+        &[
+            "trajectory.csv:3: rig stopped: write SYNC_WRITE (broadcast) [FF FF FD 00 FE ",
+            "to ID 3 unconfirmed",
+            "no status from ID 3 for READ to ID 3 [FF FF FD 00 03 ",
+            "after 3 attempt(s)",
+            "holding IDs 1, 2, 4; could not hold ID 3",
+            "recording.csv keeps 1 row)",
+        ],
     );
-    assert_eq!(o.status.code(), Some(1));
-    let err = stderr(&o);
-    assert_eq!(err.lines().count(), 1, "{err}");
-    for part in [
-        "trajectory.csv:3: rig stopped: write SYNC_WRITE (broadcast) [FF FF FD 00 FE ",
-        "to ID 3 unconfirmed",
-        "no status from ID 3 for READ to ID 3 [FF FF FD 00 03 ",
-        "after 3 attempt(s)",
-        "holding IDs 1, 2, 4; could not hold ID 3",
-        "recording.csv keeps 1 row)",
-    ] {
-        assert!(err.contains(part), "`{part}` not in: {err}");
-    }
-    check_recording(
-        &std::fs::read_to_string(&recording).unwrap(),
-        "trajectory",
-        &trajectory_rows()[..1],
-    );
+    check_recording(&text, "trajectory", &trajectory_rows()[..1]);
 }
 
 #[test]
 fn transient_wire_faults_are_retried_without_losing_or_repeating_a_row() {
-    let emulator = Emulator::start(&[
-        "--fault",
+    let faults = [
         "corrupt-crc:1@2x2",
-        "--fault",
         "drop-instruction:4@3",
-        "--fault",
         "drop-reply-bytes=4:2@4",
-        "--fault",
         "no-reply:3@5x2",
-    ]);
-    let dir = tempfile::tempdir().unwrap();
-    let recording = dir.path().join("recording.csv");
-    let o = emulator.hw(
-        "run",
-        &[
-            "--joints",
-            &trajectory(),
-            "-o",
-            recording.to_str().unwrap(),
-            "--run",
-            "retried",
-        ],
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    check_recording(
-        &std::fs::read_to_string(&recording).unwrap(),
-        "retried",
-        &trajectory_rows(),
-    );
+    ];
+    let (_emulator, o, text) = run_with_faults(&faults, &["--run", "retried"]);
+    assert_ok(&o);
+    check_recording(&text, "retried", &trajectory_rows());
 }
 
 #[test]
@@ -492,30 +471,20 @@ fn nothing_is_sent_for_joints_beyond_the_limits() {
         stderr(&o),
         "error: --joints: joint s2: 160 mm is above its max limit 150 mm\n"
     );
-    let dir = tempfile::tempdir().unwrap();
-    let late = dir.path().join("late.csv");
-    std::fs::write(
-        &late,
+    let dir = Scratch::new();
+    let late = dir.write(
+        "late.csv",
         "s1_mm,theta1_deg,s2_mm,theta2_deg\n20,0,70,0\n20,190,70,0\n",
-    )
-    .unwrap();
-    let recording = dir.path().join("recording.csv");
-    let o = emulator.hw(
-        "run",
-        &[
-            "--joints",
-            late.to_str().unwrap(),
-            "-o",
-            recording.to_str().unwrap(),
-        ],
     );
+    let recording = dir.file("recording.csv");
+    let o = emulator.run_to(&late, &recording, &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).contains("late.csv:3: joint theta1: 190 deg is above its max limit 180 deg"),
         "{}",
         stderr(&o)
     );
-    assert!(!recording.exists());
+    assert!(!Path::new(&recording).exists());
     // the motors never moved nor got torque
     let motors = ping(&emulator);
     assert!(motors.iter().all(|m| m.1 == "off"));

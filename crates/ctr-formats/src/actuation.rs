@@ -1,16 +1,32 @@
 //! `[actuation]`: which motor drives which joint of the robot, and how (the shape is
 //! documented in [the module above](super)).
 //!
-//! The tables have exactly the shape of `ctr-hw`'s `[[actuation.joint]]` (this crate
-//! keeps its own serde mirror so that reading robot files needs no serial-port code);
-//! what the robot file adds is the naming rule that ties each table to a joint column:
-//! `s{i}` is the feed of tube i (column `s{i}_mm`, kind `feed`, mm) and `theta{i}` its
-//! rotation (column `theta{i}_deg`, kind `rotation`, degrees). The joint value in the
-//! file's units is what the motor mapping converts, unchanged: `s{i} = 0` is tube i's
-//! tip at the guide exit, `theta{i} = 0` its zero rotation.
+//! This is the one schema of an actuated joint: robot files are read into
+//! [`ActuatedJoint`] here, and `ctr-hw` drives its motors with the very same structs
+//! (it adds only what needs the motors' control table: limit checks on commands and
+//! profile velocities). What the robot file adds to the tables is the naming rule that
+//! ties each one to a joint column: `s{i}` is the feed of tube i (column `s{i}_mm`,
+//! kind `feed`, mm) and `theta{i}` its rotation (column `theta{i}_deg`, kind
+//! `rotation`, degrees). The joint value in the file's units is what the motor mapping
+//! converts, unchanged: `s{i} = 0` is tube i's tip at the guide exit, `theta{i} = 0`
+//! its zero rotation.
+//!
+//! # Motor mapping
+//!
+//! With `u` the motor revolutions per joint unit ([`ActuatedJoint::motor_revs_per_unit`]:
+//! `1 / mm_per_rev` for a feed, `gear_ratio / 360` for a rotation):
+//!
+//! ```text
+//! ticks = zero_offset_ticks + direction * round(value * u * ticks_per_rev)
+//! value = direction * (ticks - zero_offset_ticks) / (u * ticks_per_rev)
+//! ```
+//!
+//! A motor position is a signed 32-bit register: limits whose position does not fit it
+//! are refused when the section is validated.
 
 use super::robot_file::Key;
 use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// `[actuation]`: one `[[actuation.joint]]` per joint (a feed and a rotation per tube).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -34,10 +50,28 @@ pub enum ActuatorKind {
 
 impl ActuatorKind {
     /// The name used in files: `rotation` or `feed`.
+    ///
+    /// ```
+    /// assert_eq!(ctr_formats::ActuatorKind::Rotation.as_str(), "rotation");
+    /// ```
     pub fn as_str(self) -> &'static str {
         match self {
             ActuatorKind::Rotation => "rotation",
             ActuatorKind::Feed => "feed",
+        }
+    }
+
+    /// The unit of the joint value: `mm` (feed) or `deg` (rotation).
+    ///
+    /// ```
+    /// use ctr_formats::ActuatorKind;
+    /// assert_eq!(ActuatorKind::Feed.unit(), "mm");
+    /// assert_eq!(ActuatorKind::Rotation.unit(), "deg");
+    /// ```
+    pub fn unit(self) -> &'static str {
+        match self {
+            ActuatorKind::Feed => "mm",
+            ActuatorKind::Rotation => "deg",
         }
     }
 }
@@ -48,6 +82,9 @@ pub const DEFAULT_TICKS_PER_REV: u32 = 4096;
 /// Largest device ID a motor can have (253..=255 are reserved by Dynamixel 2.0).
 pub const MAX_MOTOR_ID: u8 = 252;
 
+/// Degrees per revolution, for rotation joints.
+const DEGREES_PER_REV: f64 = 360.0;
+
 fn default_ticks_per_rev() -> u32 {
     DEFAULT_TICKS_PER_REV
 }
@@ -56,7 +93,16 @@ fn default_direction() -> i8 {
     1
 }
 
-/// One `[[actuation.joint]]` table.
+/// One `[[actuation.joint]]` table: the motor that drives a joint and how.
+///
+/// ```
+/// use ctr_formats::ActuatedJoint;
+/// let mut s1 = ActuatedJoint::feed(1, 1, 8.0, 0.0, 60.0, 10.0);
+/// s1.direction = -1;
+/// s1.zero_offset_ticks = 100;
+/// assert_eq!(s1.to_ticks(4.0), Some(100 - 2048));
+/// assert_eq!(s1.from_ticks(100 - 2048), 4.0);
+/// ```
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatedJoint {
@@ -90,6 +136,75 @@ pub struct ActuatedJoint {
 }
 
 impl ActuatedJoint {
+    /// The feed `s{tube}` with the defaults (4096 ticks, direction 1, offset 0): `mm_per_rev`
+    /// mm per motor revolution, limits in mm, `max_speed` in mm/s.
+    ///
+    /// ```
+    /// let s2 = ctr_formats::ActuatedJoint::feed(2, 3, 8.0, 0.0, 150.0, 6.0);
+    /// assert_eq!((s2.name.as_str(), s2.mm_per_rev), ("s2", Some(8.0)));
+    /// ```
+    pub fn feed(
+        tube: usize,
+        motor_id: u8,
+        mm_per_rev: f64,
+        min: f64,
+        max: f64,
+        max_speed: f64,
+    ) -> Self {
+        let joint = JointId {
+            tube,
+            kind: ActuatorKind::Feed,
+        };
+        Self::with_defaults(joint, motor_id, Some(mm_per_rev), [min, max], max_speed)
+    }
+
+    /// The rotation `theta{tube}` with the defaults (gear ratio 1, 4096 ticks, direction 1,
+    /// offset 0): limits in degrees, `max_speed` in degrees/s.
+    ///
+    /// ```
+    /// let theta1 = ctr_formats::ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0);
+    /// assert_eq!(theta1.name, "theta1");
+    /// assert_eq!(theta1.to_ticks(360.0 / 4096.0), Some(1));
+    /// ```
+    pub fn rotation(tube: usize, motor_id: u8, min: f64, max: f64, max_speed: f64) -> Self {
+        let joint = JointId {
+            tube,
+            kind: ActuatorKind::Rotation,
+        };
+        Self::with_defaults(joint, motor_id, None, [min, max], max_speed)
+    }
+
+    fn with_defaults(
+        joint: JointId,
+        motor_id: u8,
+        mm_per_rev: Option<f64>,
+        [min, max]: [f64; 2],
+        max_speed: f64,
+    ) -> Self {
+        Self {
+            name: joint.name(),
+            motor_id,
+            kind: joint.kind,
+            ticks_per_rev: DEFAULT_TICKS_PER_REV,
+            mm_per_rev,
+            gear_ratio: None,
+            direction: 1,
+            zero_offset_ticks: 0,
+            min,
+            max,
+            max_speed,
+        }
+    }
+
+    /// The unit of the joint value and its limits: `mm` or `deg`.
+    ///
+    /// ```
+    /// assert_eq!(ctr_formats::ActuatedJoint::rotation(1, 2, -1.0, 1.0, 1.0).unit(), "deg");
+    /// ```
+    pub fn unit(&self) -> &'static str {
+        self.kind.unit()
+    }
+
     /// Motor revolutions per joint unit (per degree or per mm); NaN for a feed joint
     /// without `mm_per_rev` (refused by validation).
     ///
@@ -104,17 +219,43 @@ impl ActuatedJoint {
     /// ```
     pub fn motor_revs_per_unit(&self) -> f64 {
         match self.kind {
-            ActuatorKind::Rotation => self.gear_ratio.unwrap_or(1.0) / 360.0,
+            ActuatorKind::Rotation => self.gear_ratio.unwrap_or(1.0) / DEGREES_PER_REV,
             ActuatorKind::Feed => 1.0 / self.mm_per_rev.unwrap_or(f64::NAN),
         }
     }
 
-    /// The motor position of a joint value, if it fits a signed 32-bit register.
-    fn ticks(&self, value: f64) -> Option<f64> {
+    /// The motor position of a joint value, `zero_offset_ticks + direction * round(value *
+    /// u * ticks_per_rev)` with `u` the [motor revolutions per
+    /// unit](Self::motor_revs_per_unit); `None` when it does not fit the motor's signed
+    /// 32-bit position register. Limits are not checked here.
+    ///
+    /// ```
+    /// let mut theta1 = ctr_formats::ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0);
+    /// theta1.gear_ratio = Some(2.0);
+    /// theta1.direction = -1;
+    /// theta1.zero_offset_ticks = 100;
+    /// assert_eq!(theta1.to_ticks(45.0), Some(100 - 1024));
+    /// assert_eq!(theta1.to_ticks(1e12), None);
+    /// ```
+    pub fn to_ticks(&self, value: f64) -> Option<i32> {
         let delta = (value * self.motor_revs_per_unit() * f64::from(self.ticks_per_rev)).round();
         let ticks = f64::from(self.zero_offset_ticks) + f64::from(self.direction) * delta;
         (ticks.is_finite() && ticks >= f64::from(i32::MIN) && ticks <= f64::from(i32::MAX))
-            .then_some(ticks)
+            .then_some(ticks as i32)
+    }
+
+    /// The joint value of a motor position, `direction * (ticks - zero_offset_ticks) / (u *
+    /// ticks_per_rev)` (the inverse of [`to_ticks`](Self::to_ticks)); no limit check:
+    /// positions are facts.
+    ///
+    /// ```
+    /// let theta1 = ctr_formats::ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0);
+    /// assert_eq!(theta1.from_ticks(2048), 180.0);
+    /// ```
+    pub fn from_ticks(&self, ticks: i32) -> f64 {
+        let relative = f64::from(ticks) - f64::from(self.zero_offset_ticks);
+        f64::from(self.direction) * relative
+            / (self.motor_revs_per_unit() * f64::from(self.ticks_per_rev))
     }
 }
 
@@ -180,10 +321,7 @@ impl JointId {
 
     /// `mm` or `deg`.
     pub fn unit(self) -> &'static str {
-        match self.kind {
-            ActuatorKind::Feed => "mm",
-            ActuatorKind::Rotation => "deg",
-        }
+        self.kind.unit()
     }
 
     /// Position in the joint vector `s1, theta1, s2, theta2, ...` (0-based).
@@ -208,187 +346,350 @@ impl JointId {
     }
 }
 
-/// Checks `[actuation]` against a robot of `n_tubes` tubes and returns its joints in
-/// joint-vector order (`s1, theta1, s2, ...`). Errors come with the key path of the
-/// offending value, for locating it in the file.
-pub(crate) fn validate(
-    section: &ActuationSection,
-    n_tubes: usize,
-) -> Result<Vec<ActuatedJoint>, (String, Vec<Key>)> {
-    use Key::{Index, Name};
-    let mut slots: Vec<Option<usize>> = vec![None; 2 * n_tubes];
-    for (i, joint) in section.joint.iter().enumerate() {
-        let at = |key: &'static str| vec![Name("actuation"), Name("joint"), Index(i), Name(key)];
-        let fail = |key: &'static str, message: String| {
-            Err((format!("actuation.joint {}: {message}", i + 1), at(key)))
-        };
-        let Some(id) = JointId::parse(&joint.name) else {
-            return fail(
-                "name",
-                format!(
-                    "name \"{}\" is not a joint of the robot; use s1..s{n_tubes} (feed, columns s<i>_mm) or theta1..theta{n_tubes} (rotation, columns theta<i>_deg)",
-                    joint.name
-                ),
-            );
-        };
+/// What is wrong with an `[actuation]` section (see [`InvalidActuation`] for where).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ActuationProblem {
+    /// `name` is neither `s{i}` nor `theta{i}`.
+    #[error("name \"{name}\" is not a joint of the robot; use s1..s{n_tubes} (feed, columns s<i>_mm) or theta1..theta{n_tubes} (rotation, columns theta<i>_deg)")]
+    NotAJoint {
+        /// The name given.
+        name: String,
+        /// The robot's tube count.
+        n_tubes: usize,
+    },
+    /// `name` is the joint of a tube the robot does not have.
+    #[error("name \"{name}\": the robot has {n_tubes} tube{}", if *.n_tubes == 1 { "" } else { "s" })]
+    NoSuchTube {
+        /// The name given.
+        name: String,
+        /// The robot's tube count.
+        n_tubes: usize,
+    },
+    /// Two tables name the same joint.
+    #[error("{name} is actuated twice (also by actuation.joint {})", .first + 1)]
+    ActuatedTwice {
+        /// The joint's name.
+        name: String,
+        /// The earlier table naming it (0-based).
+        first: usize,
+    },
+    /// `kind` does not fit the joint's name.
+    #[error("kind \"{}\" does not fit {name}, a {} joint (column {}); use kind = \"{}\"", .kind.as_str(), .joint.kind.as_str(), .joint.column(), .joint.kind.as_str())]
+    KindMismatch {
+        /// The joint's name.
+        name: String,
+        /// The kind given.
+        kind: ActuatorKind,
+        /// The joint the name stands for.
+        joint: JointId,
+    },
+    /// `motor_id` above [`MAX_MOTOR_ID`].
+    #[error("motor_id {motor_id} is not a device ID (0..={})", MAX_MOTOR_ID)]
+    NotADeviceId {
+        /// The ID given.
+        motor_id: u8,
+    },
+    /// Two joints on one motor.
+    #[error("motor_id {motor_id} already drives {other}")]
+    MotorTwice {
+        /// The motor's ID.
+        motor_id: u8,
+        /// The joint of the earlier table on that motor.
+        other: String,
+    },
+    /// `ticks_per_rev = 0`.
+    #[error("ticks_per_rev must be positive")]
+    NoTicksPerRev,
+    /// `direction` other than 1 or -1.
+    #[error("direction must be 1 or -1, not {direction}")]
+    BadDirection {
+        /// The direction given.
+        direction: i8,
+    },
+    /// `gear_ratio` on a feed joint.
+    #[error("gear_ratio is for rotation joints; feed joint {name} takes mm_per_rev")]
+    GearRatioOnFeed {
+        /// The joint's name.
+        name: String,
+    },
+    /// A feed joint without `mm_per_rev`.
+    #[error("feed joint {name} needs mm_per_rev (mm of feed per motor revolution)")]
+    MissingLead {
+        /// The joint's name.
+        name: String,
+    },
+    /// `mm_per_rev` not finite and positive.
+    #[error("mm_per_rev = {lead} must be positive")]
+    LeadNotPositive {
+        /// The lead given, mm per motor revolution.
+        lead: f64,
+    },
+    /// `mm_per_rev` on a rotation joint.
+    #[error("mm_per_rev is for feed joints; rotation joint {name} takes gear_ratio")]
+    LeadOnRotation {
+        /// The joint's name.
+        name: String,
+    },
+    /// `gear_ratio` not finite and positive.
+    #[error("gear_ratio = {ratio} must be positive")]
+    RatioNotPositive {
+        /// The ratio given, motor revolutions per tube revolution.
+        ratio: f64,
+    },
+    /// A NaN or infinite limit.
+    #[error("{key} = {value} must be finite")]
+    LimitNotFinite {
+        /// `min` or `max`.
+        key: &'static str,
+        /// The limit given.
+        value: f64,
+    },
+    /// `min > max`.
+    #[error("min = {min} is above max = {max}")]
+    MinAboveMax {
+        /// The lower limit.
+        min: f64,
+        /// The upper limit.
+        max: f64,
+    },
+    /// `max_speed` not finite and positive.
+    #[error("max_speed = {max_speed} must be positive ({unit}/s)")]
+    SpeedNotPositive {
+        /// The speed given.
+        max_speed: f64,
+        /// The joint's unit.
+        unit: &'static str,
+    },
+    /// A limit whose motor position does not fit the signed 32-bit register.
+    #[error("{key} = {bound} is beyond the motor's 32-bit position range")]
+    BeyondMotorRange {
+        /// `min` or `max`.
+        key: &'static str,
+        /// The limit given.
+        bound: f64,
+    },
+    /// A joint of the robot without a table.
+    #[error("no [[actuation.joint]] for {} (column {}); each tube needs a feed joint s<i> and a rotation joint theta<i>", .joint.name(), .joint.column())]
+    MissingJoint {
+        /// The joint.
+        joint: JointId,
+    },
+}
+
+impl ActuationProblem {
+    /// The key of the `[[actuation.joint]]` table the problem is about (`None`: the
+    /// section as a whole).
+    ///
+    /// ```
+    /// use ctr_formats::ActuationProblem;
+    /// assert_eq!(ActuationProblem::NoTicksPerRev.key(), Some("ticks_per_rev"));
+    /// ```
+    pub fn key(&self) -> Option<&'static str> {
+        use ActuationProblem::*;
+        Some(match self {
+            NotAJoint { .. } | NoSuchTube { .. } | ActuatedTwice { .. } | MissingLead { .. } => {
+                "name"
+            }
+            KindMismatch { .. } => "kind",
+            NotADeviceId { .. } | MotorTwice { .. } => "motor_id",
+            NoTicksPerRev => "ticks_per_rev",
+            BadDirection { .. } => "direction",
+            GearRatioOnFeed { .. } | RatioNotPositive { .. } => "gear_ratio",
+            LeadNotPositive { .. } | LeadOnRotation { .. } => "mm_per_rev",
+            LimitNotFinite { key, .. } | BeyondMotorRange { key, .. } => key,
+            MinAboveMax { .. } => "min",
+            SpeedNotPositive { .. } => "max_speed",
+            MissingJoint { .. } => return None,
+        })
+    }
+}
+
+/// An `[actuation]` section that does not fit its robot: which table and what is wrong.
+/// Shown as `actuation.joint 3: <problem>` (tables count from 1), or `actuation:
+/// <problem>` for the section as a whole.
+///
+/// ```
+/// use ctr_formats::{ActuatedJoint, ActuationProblem, ActuationSection};
+/// let joint = vec![
+///     ActuatedJoint::feed(1, 1, 8.0, 0.0, 60.0, 10.0),
+///     ActuatedJoint::rotation(1, 1, -180.0, 180.0, 90.0),
+/// ];
+/// let err = ActuationSection { joint }.validate(1).unwrap_err();
+/// assert_eq!(err.table, Some(1));
+/// assert!(matches!(err.problem, ActuationProblem::MotorTwice { motor_id: 1, .. }));
+/// assert_eq!(err.to_string(), "actuation.joint 2: motor_id 1 already drives s1");
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct InvalidActuation {
+    /// The `[[actuation.joint]]` table, 0-based; `None` for the section as a whole.
+    pub table: Option<usize>,
+    /// What is wrong.
+    pub problem: ActuationProblem,
+}
+
+impl fmt::Display for InvalidActuation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.table {
+            Some(i) => write!(f, "actuation.joint {}: {}", i + 1, self.problem),
+            None => write!(f, "actuation: {}", self.problem),
+        }
+    }
+}
+
+impl std::error::Error for InvalidActuation {}
+
+impl InvalidActuation {
+    /// The key path of the offending value, for locating it in the file.
+    pub(crate) fn key_path(&self) -> Vec<Key> {
+        use Key::{Index, Name};
+        match (self.table, self.problem.key()) {
+            (Some(i), Some(key)) => vec![Name("actuation"), Name("joint"), Index(i), Name(key)],
+            _ => vec![Name("actuation")],
+        }
+    }
+}
+
+impl ActuationSection {
+    /// Checks the section against a robot of `n_tubes` tubes and returns its joints in
+    /// joint-vector order (`s1, theta1, s2, ...`): every joint actuated exactly once, by a
+    /// table whose kind fits its name, each motor driving one joint, and every table
+    /// usable (see [`ActuationProblem`]). The first problem in file order is returned.
+    ///
+    /// ```
+    /// use ctr_formats::{ActuatedJoint, ActuationSection};
+    /// let joint = vec![
+    ///     ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0),
+    ///     ActuatedJoint::feed(1, 1, 8.0, 0.0, 60.0, 10.0),
+    /// ];
+    /// let joints = ActuationSection { joint }.validate(1)?;
+    /// assert_eq!(joints[0].name, "s1");
+    /// # Ok::<(), ctr_formats::InvalidActuation>(())
+    /// ```
+    pub fn validate(&self, n_tubes: usize) -> Result<Vec<ActuatedJoint>, InvalidActuation> {
+        let mut slots: Vec<Option<usize>> = vec![None; 2 * n_tubes];
+        for i in 0..self.joint.len() {
+            let id = self
+                .check_joint(i, n_tubes, &slots)
+                .map_err(|problem| InvalidActuation {
+                    table: Some(i),
+                    problem,
+                })?;
+            slots[id.index()] = Some(i);
+        }
+        if let Some(joint) = JointId::all(n_tubes).find(|j| slots[j.index()].is_none()) {
+            return Err(InvalidActuation {
+                table: None,
+                problem: ActuationProblem::MissingJoint { joint },
+            });
+        }
+        // every slot is filled (checked just above)
+        Ok(slots
+            .into_iter()
+            .flatten()
+            .map(|i| self.joint[i].clone())
+            .collect())
+    }
+
+    /// Checks table `i` given the joints taken by the tables before it (`slots`).
+    fn check_joint(
+        &self,
+        i: usize,
+        n_tubes: usize,
+        slots: &[Option<usize>],
+    ) -> Result<JointId, ActuationProblem> {
+        use ActuationProblem::*;
+        let joint = &self.joint[i];
+        let name = || joint.name.clone();
+        let id = JointId::parse(&joint.name).ok_or_else(|| NotAJoint {
+            name: name(),
+            n_tubes,
+        })?;
         if id.tube > n_tubes {
-            return fail(
-                "name",
-                format!(
-                    "name \"{}\": the robot has {n_tubes} tube{}",
-                    joint.name,
-                    if n_tubes == 1 { "" } else { "s" }
-                ),
-            );
+            return Err(NoSuchTube {
+                name: name(),
+                n_tubes,
+            });
         }
         if let Some(first) = slots[id.index()] {
-            return fail(
-                "name",
-                format!(
-                    "{} is actuated twice (also by actuation.joint {})",
-                    joint.name,
-                    first + 1
-                ),
-            );
+            return Err(ActuatedTwice {
+                name: name(),
+                first,
+            });
         }
         if joint.kind != id.kind {
-            return fail(
-                "kind",
-                format!(
-                    "kind \"{}\" does not fit {}, a {} joint (column {}); use kind = \"{}\"",
-                    joint.kind.as_str(),
-                    joint.name,
-                    id.kind.as_str(),
-                    id.column(),
-                    id.kind.as_str()
-                ),
-            );
+            return Err(KindMismatch {
+                name: name(),
+                kind: joint.kind,
+                joint: id,
+            });
         }
         if joint.motor_id > MAX_MOTOR_ID {
-            return fail(
-                "motor_id",
-                format!(
-                    "motor_id {} is not a device ID (0..={MAX_MOTOR_ID})",
-                    joint.motor_id
-                ),
-            );
+            return Err(NotADeviceId {
+                motor_id: joint.motor_id,
+            });
         }
-        if let Some(other) = section.joint[..i]
+        if let Some(other) = self.joint[..i]
             .iter()
             .find(|o| o.motor_id == joint.motor_id)
         {
-            return fail(
-                "motor_id",
-                format!("motor_id {} already drives {}", joint.motor_id, other.name),
-            );
+            return Err(MotorTwice {
+                motor_id: joint.motor_id,
+                other: other.name.clone(),
+            });
         }
         if joint.ticks_per_rev == 0 {
-            return fail("ticks_per_rev", "ticks_per_rev must be positive".into());
+            return Err(NoTicksPerRev);
         }
         if joint.direction != 1 && joint.direction != -1 {
-            return fail(
-                "direction",
-                format!("direction must be 1 or -1, not {}", joint.direction),
-            );
+            return Err(BadDirection {
+                direction: joint.direction,
+            });
         }
         let positive = |v: f64| v.is_finite() && v > 0.0;
         match joint.kind {
             ActuatorKind::Feed => {
                 if joint.gear_ratio.is_some() {
-                    return fail(
-                        "gear_ratio",
-                        format!(
-                            "gear_ratio is for rotation joints; feed joint {} takes mm_per_rev",
-                            joint.name
-                        ),
-                    );
+                    return Err(GearRatioOnFeed { name: name() });
                 }
                 match joint.mm_per_rev {
-                    None => {
-                        return Err((
-                            format!(
-                                "actuation.joint {}: feed joint {} needs mm_per_rev (mm of feed per motor revolution)",
-                                i + 1,
-                                joint.name
-                            ),
-                            at("name"),
-                        ))
-                    }
-                    Some(lead) if !positive(lead) => {
-                        return fail(
-                            "mm_per_rev",
-                            format!("mm_per_rev = {lead} must be positive"),
-                        )
-                    }
+                    None => return Err(MissingLead { name: name() }),
+                    Some(lead) if !positive(lead) => return Err(LeadNotPositive { lead }),
                     Some(_) => {}
                 }
             }
             ActuatorKind::Rotation => {
                 if joint.mm_per_rev.is_some() {
-                    return fail(
-                        "mm_per_rev",
-                        format!(
-                            "mm_per_rev is for feed joints; rotation joint {} takes gear_ratio",
-                            joint.name
-                        ),
-                    );
+                    return Err(LeadOnRotation { name: name() });
                 }
                 if let Some(ratio) = joint.gear_ratio.filter(|r| !positive(*r)) {
-                    return fail(
-                        "gear_ratio",
-                        format!("gear_ratio = {ratio} must be positive"),
-                    );
+                    return Err(RatioNotPositive { ratio });
                 }
             }
         }
-        if !joint.min.is_finite() {
-            return fail("min", format!("min = {} must be finite", joint.min));
-        }
-        if !joint.max.is_finite() {
-            return fail("max", format!("max = {} must be finite", joint.max));
-        }
-        if joint.min > joint.max {
-            return fail(
-                "min",
-                format!("min = {} is above max = {}", joint.min, joint.max),
-            );
-        }
-        if !positive(joint.max_speed) {
-            return fail(
-                "max_speed",
-                format!(
-                    "max_speed = {} must be positive ({}/s)",
-                    joint.max_speed,
-                    id.unit()
-                ),
-            );
-        }
-        for (key, bound) in [("min", joint.min), ("max", joint.max)] {
-            if joint.ticks(bound).is_none() {
-                return fail(
-                    key,
-                    format!("{key} = {bound} is beyond the motor's 32-bit position range"),
-                );
+        for (key, value) in [("min", joint.min), ("max", joint.max)] {
+            if !value.is_finite() {
+                return Err(LimitNotFinite { key, value });
             }
         }
-        slots[id.index()] = Some(i);
+        if joint.min > joint.max {
+            return Err(MinAboveMax {
+                min: joint.min,
+                max: joint.max,
+            });
+        }
+        if !positive(joint.max_speed) {
+            return Err(SpeedNotPositive {
+                max_speed: joint.max_speed,
+                unit: id.unit(),
+            });
+        }
+        for (key, bound) in [("min", joint.min), ("max", joint.max)] {
+            if joint.to_ticks(bound).is_none() {
+                return Err(BeyondMotorRange { key, bound });
+            }
+        }
+        Ok(id)
     }
-    if let Some(missing) = JointId::all(n_tubes).find(|j| slots[j.index()].is_none()) {
-        return Err((
-            format!(
-                "actuation: no [[actuation.joint]] for {} (column {}); each tube needs a feed joint s<i> and a rotation joint theta<i>",
-                missing.name(),
-                missing.column()
-            ),
-            vec![Name("actuation")],
-        ));
-    }
-    // every slot is filled (checked just above)
-    Ok(slots
-        .into_iter()
-        .flatten()
-        .map(|i| section.joint[i].clone())
-        .collect())
 }
 
 #[cfg(test)]

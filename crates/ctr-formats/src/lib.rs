@@ -88,7 +88,7 @@
 //! the joint value, in the column's unit, is what the motor mapping converts:
 //! `ticks = zero_offset_ticks + direction * round(value * u * ticks_per_rev)` with `u`
 //! the motor revolutions per unit (`1 / mm_per_rev`, or `gear_ratio / 360`). The tables
-//! have exactly the shape of `ctr-hw`'s `[[actuation.joint]]`. A validated robot keeps
+//! are [`ActuatedJoint`]s, the structs `ctr-hw` drives its motors with. A validated robot keeps
 //! them in joint-vector order ([`RobotSpec::actuation`]: `s1, theta1, s2, ...`) and
 //! writes them back in that order. Errors name the table (`actuation.joint 3`), the
 //! key and its line and column: unknown or missing keys, names that are not a joint of
@@ -165,7 +165,8 @@ pub use error::{status_name, Error, ErrorKind, Location};
 pub use robot::{canonical_quaternion, joint_columns, joints_of, AnyRobot, FkResult};
 
 pub use actuation::{
-    ActuatedJoint, ActuationSection, ActuatorKind, JointId, DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
+    ActuatedJoint, ActuationProblem, ActuationSection, ActuatorKind, InvalidActuation, JointId,
+    DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
 };
 pub use effects::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,

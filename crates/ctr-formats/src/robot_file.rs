@@ -2,7 +2,7 @@
 //!
 //! The shape is documented in [the module above](super).
 
-use super::actuation::{self, ActuatedJoint, ActuationSection};
+use super::actuation::{ActuatedJoint, ActuationSection};
 use super::effects::Effects;
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::AnyRobot;
@@ -344,10 +344,10 @@ impl RobotFile {
         };
         let actuation = match &self.actuation {
             None => None,
-            Some(section) => Some(
-                actuation::validate(section, params.len())
-                    .map_err(|(message, path)| (ErrorKind::Toml { message }, path))?,
-            ),
+            Some(section) => Some(section.validate(params.len()).map_err(|e| {
+                let message = e.to_string();
+                (ErrorKind::Toml { message }, e.key_path())
+            })?),
         };
         Ok(RobotSpec {
             name: self.name.clone(),

@@ -62,8 +62,9 @@ pub const VELOCITY_UNIT_RPM: f64 = 0.229;
 pub const ACCELERATION_UNIT_RPM2: f64 = 214.577;
 /// Largest profile velocity or acceleration value accepted.
 pub const PROFILE_MAX: u32 = 32_767;
-/// Ticks per revolution of the X-series encoder.
-pub const TICKS_PER_REV: u32 = 4096;
+/// Ticks per revolution of the X-series encoder (the robot file's default
+/// `ticks_per_rev`).
+pub const TICKS_PER_REV: u32 = ctr_formats::DEFAULT_TICKS_PER_REV;
 /// Largest goal magnitude in extended position mode (ticks).
 pub const EXTENDED_POSITION_LIMIT: i32 = 1_048_575;
 /// Model number of the XM430-W350.

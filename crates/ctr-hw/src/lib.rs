@@ -7,7 +7,9 @@
 //!   mock ([`transport::MockTransport`]);
 //! * [`protocol`]: pure framing functions (CRC, byte stuffing, packets);
 //! * [`bus`]: ping, read, write, sync read and sync write with bounded, idempotent retries;
-//! * [`actuation`]: joint values (mm, degrees) to motor ticks and back, with limit checks;
+//! * [`actuation`]: joint vectors (mm, degrees) to motor ticks and back, with limit
+//!   checks, for the joints of a robot file's `[actuation]` (`ctr_formats::ActuatedJoint`:
+//!   `s1`, `theta1`, ...);
 //! * [`rig`]: moves joints, reads them back and stops on faults;
 //! * [`emulator`]: an in-process four-motor bus for tests and for `ctr-cli hw emulate`.
 //!
@@ -32,3 +34,8 @@ pub mod emulator;
 pub mod protocol;
 pub mod rig;
 pub mod transport;
+
+/// The rig set-up shared with the integration tests.
+#[cfg(test)]
+#[path = "../tests/common/mod.rs"]
+mod test_rigs;

@@ -22,27 +22,28 @@
 //! [`Rig::torque_off`] still work.
 //!
 //! ```
-//! use ctr_hw::actuation::{Actuation, JointActuation};
+//! use ctr_formats::ActuatedJoint;
+//! use ctr_hw::actuation::Actuation;
 //! use ctr_hw::bus::{Bus, BusConfig};
 //! use ctr_hw::emulator::{Emulator, EmulatorConfig, Fault};
 //! use ctr_hw::rig::{Rig, RigConfig, RigError};
 //! use std::time::Duration;
 //!
-//! let emu = Emulator::new(EmulatorConfig { time_scale: 0.0, ..EmulatorConfig::default() });
+//! let emu = Emulator::new(EmulatorConfig::frozen());
 //! let actuation = Actuation::new(vec![
-//!     JointActuation::rotation("alpha1", 1, -180.0, 180.0, 90.0),
-//!     JointActuation::feed("beta1", 2, 8.0, -60.0, 0.0, 10.0),
-//!     JointActuation::rotation("alpha2", 3, -180.0, 180.0, 90.0),
-//!     JointActuation::feed("beta2", 4, 8.0, -30.0, 0.0, 10.0),
+//!     ActuatedJoint::feed(1, 1, 8.0, 0.0, 60.0, 10.0),      // s1 on motor 1
+//!     ActuatedJoint::rotation(1, 2, -180.0, 180.0, 90.0),   // theta1 on motor 2
+//!     ActuatedJoint::feed(2, 3, 8.0, 0.0, 90.0, 10.0),      // s2 on motor 3
+//!     ActuatedJoint::rotation(2, 4, -180.0, 180.0, 90.0),   // theta2 on motor 4
 //! ])?;
 //! let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), actuation, RigConfig::default());
 //! rig.enable()?;
-//! rig.move_to(&[90.0, -8.0, 0.0, -4.0])?;
+//! rig.move_to(&[8.0, 90.0, 4.0, 0.0])?;
 //! emu.advance(Duration::from_secs(5));
-//! assert_eq!(rig.positions()?, [90.0, -8.0, 0.0, -4.0]);
+//! assert_eq!(rig.positions()?, [8.0, 90.0, 4.0, 0.0]);
 //!
 //! // Out of limits: refused before anything is sent.
-//! assert!(matches!(rig.move_to(&[90.0, 5.0, 0.0, 0.0]), Err(RigError::Actuation(_))));
+//! assert!(matches!(rig.move_to(&[65.0, 90.0, 4.0, 0.0]), Err(RigError::Actuation(_))));
 //!
 //! // An overload stops the rig and names the motor.
 //! emu.inject(Some(3), Fault::Overload);
@@ -56,7 +57,7 @@
 use std::fmt;
 use std::time::{Duration, Instant};
 
-use crate::actuation::{Actuation, ActuationError};
+use crate::actuation::{self, Actuation, ActuationError};
 use crate::bus::{Bus, BusError, PingReply};
 use crate::control_table as ct;
 use crate::transport::Transport;
@@ -185,14 +186,19 @@ pub enum RigError {
 /// The rig: a bus plus the joint-to-motor mapping.
 ///
 /// ```
-/// use ctr_hw::actuation::{Actuation, JointActuation};
+/// use ctr_formats::ActuatedJoint;
+/// use ctr_hw::actuation::Actuation;
 /// use ctr_hw::bus::{Bus, BusConfig};
 /// use ctr_hw::emulator::{Emulator, EmulatorConfig};
 /// use ctr_hw::rig::{Rig, RigConfig};
 /// let emu = Emulator::new(EmulatorConfig::default());
-/// let act = Actuation::new(vec![JointActuation::rotation("alpha1", 1, -90.0, 90.0, 45.0)])?;
+/// let tube1 = vec![
+///     ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),     // s1 on motor 1
+///     ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),   // theta1 on motor 2
+/// ];
+/// let act = Actuation::new(tube1)?;
 /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-/// assert_eq!(rig.ping_all()?.len(), 1);
+/// assert_eq!(rig.ping_all()?.len(), 2);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Debug)]
@@ -312,10 +318,13 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 2, -1.0, 1.0, 1.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-    /// assert_eq!(rig.ping_all()?[0].id, 2);
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
+    /// assert_eq!(rig.ping_all()?[1].id, 2);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn ping_all(&mut self) -> Result<Vec<PingReply>, RigError> {
@@ -334,9 +343,12 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 1, -1.0, 1.0, 1.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
     /// rig.enable()?;
     /// assert_eq!(emu.torque_enabled(1), Some(true));
     /// # Ok::<(), Box<dyn std::error::Error>>(())
@@ -348,7 +360,7 @@ impl<T: Transport> Rig<T> {
             .actuation
             .joints()
             .iter()
-            .map(|j| (j.motor_id, j.profile_velocity().to_le_bytes()))
+            .map(|j| (j.motor_id, actuation::profile_velocity(j).to_le_bytes()))
             .collect();
         let result = self
             .sync_write(ct::PROFILE_VELOCITY, &velocities)
@@ -372,9 +384,12 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 1, -1.0, 1.0, 1.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
     /// rig.enable()?;
     /// rig.torque_off()?;
     /// assert_eq!(emu.torque_enabled(1), Some(false));
@@ -396,13 +411,16 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::feed("b", 1, 8.0, -10.0, 0.0, 5.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-    /// assert_eq!(rig.move_to(&[-2.0])?, [-1024]);
-    /// assert_eq!(emu.goal_position(1), Some(-1024));
-    /// assert!(rig.move_to(&[-11.0]).is_err());
-    /// assert_eq!(emu.goal_position(1), Some(-1024));
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
+    /// assert_eq!(rig.move_to(&[2.0, -45.0])?, [1024, -512]);
+    /// assert_eq!(emu.goal_position(1), Some(1024));
+    /// assert!(rig.move_to(&[11.0, 0.0]).is_err()); // s1 above its max
+    /// assert_eq!(emu.goal_position(1), Some(1024));
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn move_to(&mut self, targets: &[f64]) -> Result<Vec<i32>, RigError> {
@@ -424,17 +442,20 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("alpha1", 1, -90.0, 90.0, 45.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-    /// assert_eq!(rig.move_joint("alpha1", 45.0)?, 512);
-    /// assert!(rig.move_joint("alpha9", 0.0).is_err());
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
+    /// assert_eq!(rig.move_joint("theta1", 45.0)?, 512);
+    /// assert!(rig.move_joint("theta9", 0.0).is_err());
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn move_joint(&mut self, name: &str, value: f64) -> Result<i32, RigError> {
         self.refuse_if_faulted()?;
         let joint = &self.actuation.joints()[self.actuation.index_of(name)?];
-        let ticks = joint.to_ticks(value)?;
+        let ticks = actuation::goal_ticks(joint, value)?;
         let id = joint.motor_id;
         self.bus
             .write(id, ct::GOAL_POSITION, &ticks.to_le_bytes())
@@ -446,10 +467,13 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 1, -1.0, 1.0, 1.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-    /// assert_eq!(rig.positions_ticks()?, [0]);
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
+    /// assert_eq!(rig.positions_ticks()?, [0, 0]);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn positions_ticks(&mut self) -> Result<Vec<i32>, RigError> {
@@ -462,12 +486,15 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let mut joint = JointActuation::rotation("a", 1, -180.0, 180.0, 1.0);
-    /// joint.zero_offset_ticks = -1024; // the motor sits at 0 ticks = +90°
-    /// let act = Actuation::new(vec![joint])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-    /// assert_eq!(rig.positions()?, [90.0]);
+    /// let mut tube1 = tube1;
+    /// tube1[1].zero_offset_ticks = -1024; // theta1's motor sits at 0 ticks = +90°
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
+    /// assert_eq!(rig.positions()?, [0.0, 90.0]);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn positions(&mut self) -> Result<Vec<f64>, RigError> {
@@ -479,9 +506,12 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 1, -1.0, 1.0, 1.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
     /// assert!(!rig.is_moving()?);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
@@ -498,13 +528,16 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig { time_scale: 50.0, ..EmulatorConfig::default() });
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 1, -90.0, 90.0, 90.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
     /// rig.enable()?;
-    /// rig.move_to(&[45.0])?;
+    /// rig.move_to(&[1.0, 45.0])?;
     /// let values = rig.wait_until_still(std::time::Duration::from_secs(2))?;
-    /// assert_eq!(values, [45.0]);
+    /// assert_eq!(values, [1.0, 45.0]);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn wait_until_still(&mut self, timeout: Duration) -> Result<Vec<f64>, RigError> {
@@ -527,12 +560,15 @@ impl<T: Transport> Rig<T> {
     ///
     /// ```
     /// # use ctr_hw::{actuation::*, bus::*, emulator::*, rig::*};
+    /// # let tube1 = vec![
+    /// #     ctr_formats::ActuatedJoint::feed(1, 1, 8.0, 0.0, 10.0, 5.0),
+    /// #     ctr_formats::ActuatedJoint::rotation(1, 2, -90.0, 90.0, 45.0),
+    /// # ];
     /// let emu = Emulator::new(EmulatorConfig::default());
-    /// let act = Actuation::new(vec![JointActuation::rotation("a", 1, -90.0, 90.0, 1.0)])?;
-    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), act, RigConfig::default());
-    /// rig.move_to(&[10.0])?; // torque is off, so nothing moves
-    /// assert_eq!(rig.hold()?, [0]);
-    /// assert_eq!(emu.goal_position(1), Some(0));
+    /// let mut rig = Rig::new(Bus::new(emu.link(), BusConfig::default()), Actuation::new(tube1)?, RigConfig::default());
+    /// rig.move_to(&[5.0, 10.0])?; // torque is off, so nothing moves
+    /// assert_eq!(rig.hold()?, [0, 0]);
+    /// assert_eq!(emu.goal_position(2), Some(0));
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn hold(&mut self) -> Result<Vec<i32>, RigError> {
@@ -568,19 +604,6 @@ impl<T: Transport> Rig<T> {
         Ok(values.iter().map(|v| le_i32(v)).collect())
     }
 
-    /// Reads a register, accepting the data of an alert status.
-    fn read_despite_alert(
-        &mut self,
-        id: u8,
-        address: u16,
-        length: u16,
-    ) -> Result<Vec<u8>, BusError> {
-        match self.bus.read(id, address, length) {
-            Err(BusError::Alert { params, .. }) => Ok(params),
-            other => other,
-        }
-    }
-
     /// Writes a register; an alert status still means the write was applied.
     fn write_despite_alert(&mut self, id: u8, address: u16, data: &[u8]) -> Result<(), BusError> {
         match self.bus.write(id, address, data) {
@@ -590,8 +613,11 @@ impl<T: Transport> Rig<T> {
     }
 
     fn hold_motor(&mut self, id: u8) -> Result<i32, BusError> {
-        let present =
-            le_i32(&self.read_despite_alert(id, ct::PRESENT_POSITION, ct::PRESENT_POSITION_LEN)?);
+        let present = le_i32(&self.bus.read_despite_alert(
+            id,
+            ct::PRESENT_POSITION,
+            ct::PRESENT_POSITION_LEN,
+        )?);
         self.write_despite_alert(id, ct::GOAL_POSITION, &present.to_le_bytes())?;
         Ok(present)
     }
@@ -612,7 +638,10 @@ impl<T: Transport> Rig<T> {
             }
         }
         for &id in &answering {
-            if let Ok(status) = self.read_despite_alert(id, ct::HARDWARE_ERROR_STATUS, 1) {
+            if let Ok(status) = self
+                .bus
+                .read_despite_alert(id, ct::HARDWARE_ERROR_STATUS, 1)
+            {
                 if status[0] != 0 {
                     fault.hardware_errors.push((id, status[0]));
                 }
@@ -645,34 +674,19 @@ fn le_i32(bytes: &[u8]) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::actuation::JointActuation;
     use crate::bus::BusConfig;
-    use crate::emulator::{EmulatedLink, Emulator, EmulatorConfig, Fault};
+    use crate::emulator::testing::{bus, frozen};
+    use crate::emulator::{EmulatedLink, Emulator, Fault};
     use crate::protocol::instruction;
+    use crate::test_rigs::two_tubes;
 
+    /// Feeds at 10 mm/s, rotations at 90 degrees/s.
     fn four_joints() -> Actuation {
-        Actuation::new(vec![
-            JointActuation::rotation("alpha1", 1, -180.0, 180.0, 90.0),
-            JointActuation::feed("beta1", 2, 8.0, -60.0, 0.0, 10.0),
-            JointActuation::rotation("alpha2", 3, -180.0, 180.0, 90.0),
-            JointActuation::feed("beta2", 4, 8.0, -30.0, 0.0, 10.0),
-        ])
-        .unwrap()
+        Actuation::new(two_tubes(10.0, 90.0)).unwrap()
     }
 
     fn rig(emu: &Emulator, config: RigConfig) -> Rig<EmulatedLink> {
-        Rig::new(
-            Bus::new(emu.link(), BusConfig::default()),
-            four_joints(),
-            config,
-        )
-    }
-
-    fn frozen() -> Emulator {
-        Emulator::new(EmulatorConfig {
-            time_scale: 0.0,
-            ..EmulatorConfig::default()
-        })
+        Rig::new(bus(emu), four_joints(), config)
     }
 
     fn goal_writes(emu: &Emulator) -> usize {
@@ -690,13 +704,13 @@ mod tests {
         for id in 1..=4 {
             assert_eq!(emu.torque_enabled(id), Some(true));
         }
-        // alpha: 90 deg/s = 15 rpm → 65; beta: 10 mm/s = 75 rpm → 327.
+        // theta: 90 deg/s = 15 rpm → 65; s: 10 mm/s = 75 rpm → 327.
         assert_eq!(
-            emu.table(1, ct::PROFILE_VELOCITY, 4),
+            emu.table(2, ct::PROFILE_VELOCITY, 4),
             Some(vec![65, 0, 0, 0])
         );
         assert_eq!(
-            emu.table(2, ct::PROFILE_VELOCITY, 4),
+            emu.table(1, ct::PROFILE_VELOCITY, 4),
             Some(327u32.to_le_bytes().to_vec())
         );
     }
@@ -706,10 +720,10 @@ mod tests {
         let emu = frozen();
         let mut rig = rig(&emu, RigConfig::default());
         let before = rig.bus().stats().packets_sent;
-        let err = rig.move_to(&[0.0, 0.0, 200.0, 0.0]).unwrap_err();
+        let err = rig.move_to(&[0.0, 0.0, 0.0, 200.0]).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "joint alpha2: 200 deg is above its max limit 180 deg"
+            "joint theta2: 200 deg is above its max limit 180 deg"
         );
         assert_eq!(rig.bus().stats().packets_sent, before);
         assert!(emu.write_log().is_empty());
@@ -722,11 +736,11 @@ mod tests {
         let bus = Bus::new(MockTransport::new(), BusConfig::default());
         let mut rig = Rig::new(bus, four_joints(), RigConfig::default());
         assert!(matches!(
-            rig.move_to(&[0.0, 0.1, 0.0, 0.0]),
+            rig.move_to(&[0.1, 0.0, 0.0, 0.0]),
             Err(RigError::Actuation(_))
         ));
         assert!(matches!(
-            rig.move_joint("beta2", -31.0),
+            rig.move_joint("s2", -31.0),
             Err(RigError::Actuation(_))
         ));
         assert!(matches!(
@@ -741,7 +755,7 @@ mod tests {
         let emu = frozen();
         let mut rig = rig(&emu, RigConfig::default());
         emu.inject(None, Fault::DropInstruction);
-        rig.move_to(&[10.0, -1.0, 20.0, -2.0]).unwrap();
+        rig.move_to(&[-1.0, 10.0, -2.0, 20.0]).unwrap();
         // The sync write was lost; the read-back found every goal missing and each was
         // written once by unicast.
         assert_eq!(goal_writes(&emu), 4);
@@ -750,7 +764,7 @@ mod tests {
             .iter()
             .all(|w| w.instruction == instruction::WRITE));
         assert_eq!(rig.bus().stats().sync_write_repairs, 4);
-        rig.move_to(&[11.0, -1.0, 20.0, -2.0]).unwrap();
+        rig.move_to(&[-1.0, 11.0, -2.0, 20.0]).unwrap();
         assert_eq!(goal_writes(&emu), 8);
     }
 
@@ -789,7 +803,7 @@ mod tests {
         assert_eq!(rig.bus().stats().packets_sent, sent);
         assert!(rig.clear_fault().is_some());
         rig.enable().unwrap();
-        rig.move_to(&[1.0, 0.0, 0.0, 0.0]).unwrap();
+        rig.move_to(&[0.0, 1.0, 0.0, 0.0]).unwrap();
     }
 
     #[test]
@@ -798,7 +812,7 @@ mod tests {
         let mut rig = rig(&emu, RigConfig::default());
         rig.enable().unwrap();
         emu.inject(Some(3), Fault::Overload);
-        let err = rig.move_to(&[0.0, -1.0, 0.0, 0.0]).unwrap_err();
+        let err = rig.move_to(&[-1.0, 0.0, 0.0, 0.0]).unwrap_err();
         let text = err.to_string();
         assert!(text.contains("ID 3 raised a hardware alert"), "{text}");
         assert!(

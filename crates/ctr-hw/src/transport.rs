@@ -156,35 +156,34 @@ pub trait Transport {
     }
 }
 
-impl<T: Transport + ?Sized> Transport for &mut T {
-    fn write_all(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
-        (**self).write_all(bytes)
-    }
-    fn read(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, TransportError> {
-        (**self).read(buf, deadline)
-    }
-    fn discard_input(&mut self) -> Result<(), TransportError> {
-        (**self).discard_input()
-    }
-    fn is_timeout(&self, error: &TransportError) -> bool {
-        (**self).is_timeout(error)
-    }
+/// Implements [`Transport`] for pointers to a transport (`&mut T`, `Box<T>`) by
+/// forwarding every method to the transport pointed to.
+macro_rules! forward_transport {
+    ($($pointer:ty),+) => {$(
+        impl<T: Transport + ?Sized> Transport for $pointer {
+            fn write_all(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+                (**self).write_all(bytes)
+            }
+            fn read(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, TransportError> {
+                (**self).read(buf, deadline)
+            }
+            fn discard_input(&mut self) -> Result<(), TransportError> {
+                (**self).discard_input()
+            }
+            fn is_timeout(&self, error: &TransportError) -> bool {
+                (**self).is_timeout(error)
+            }
+        }
+    )+};
 }
 
-impl<T: Transport + ?Sized> Transport for Box<T> {
-    fn write_all(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
-        (**self).write_all(bytes)
-    }
-    fn read(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, TransportError> {
-        (**self).read(buf, deadline)
-    }
-    fn discard_input(&mut self) -> Result<(), TransportError> {
-        (**self).discard_input()
-    }
-    fn is_timeout(&self, error: &TransportError) -> bool {
-        (**self).is_timeout(error)
-    }
-}
+forward_transport!(&mut T, Box<T>);
+
+/// The port's read timeout until the first read sets its own from its deadline.
+const INITIAL_READ_TIMEOUT: Duration = Duration::from_millis(100);
+
+/// How long a write may take to hand its bytes to the line.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// A [`Transport`] over a `serialport` port (a USB adapter such as the U2D2, or a
 /// pseudo-terminal in tests).
@@ -222,7 +221,7 @@ impl SerialTransport {
             .parity(serialport::Parity::None)
             .stop_bits(serialport::StopBits::One)
             .flow_control(serialport::FlowControl::None)
-            .timeout(Duration::from_millis(100))
+            .timeout(INITIAL_READ_TIMEOUT)
             .open()
             .map_err(|e| TransportError::Open {
                 path: path.to_owned(),
@@ -241,7 +240,7 @@ impl SerialTransport {
     pub fn from_port(port: Box<dyn serialport::SerialPort>) -> Self {
         Self {
             port,
-            write_timeout: Duration::from_secs(1),
+            write_timeout: WRITE_TIMEOUT,
         }
     }
 
@@ -293,6 +292,45 @@ impl Transport for SerialTransport {
     }
 }
 
+/// Bytes that have arrived and wait to be read, handed out at once: the input side of
+/// the in-process transports ([`MockTransport`] and the emulator's link), where nothing
+/// is ever on its way, so an empty inbox is a timeout without waiting.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Inbox {
+    bytes: VecDeque<u8>,
+}
+
+impl Inbox {
+    /// Bytes arrive.
+    pub(crate) fn push(&mut self, bytes: impl IntoIterator<Item = u8>) {
+        self.bytes.extend(bytes);
+    }
+
+    /// Drops every byte not read yet.
+    pub(crate) fn clear(&mut self) {
+        self.bytes.clear();
+    }
+
+    /// Moves the oldest bytes into `buf`, at most `limit` of them (0: as many as fit);
+    /// [`TransportError::Timeout`] when there are none.
+    pub(crate) fn read(&mut self, buf: &mut [u8], limit: usize) -> Result<usize, TransportError> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        if self.bytes.is_empty() {
+            return Err(TransportError::Timeout);
+        }
+        let mut n = buf.len().min(self.bytes.len());
+        if limit > 0 {
+            n = n.min(limit);
+        }
+        for (slot, byte) in buf.iter_mut().zip(self.bytes.drain(..n)) {
+            *slot = byte;
+        }
+        Ok(n)
+    }
+}
+
 /// One scripted answer of a [`MockTransport`] to a write.
 ///
 /// ```
@@ -331,7 +369,7 @@ pub enum MockReply {
 pub struct MockTransport {
     script: VecDeque<MockReply>,
     written: Vec<Vec<u8>>,
-    input: VecDeque<u8>,
+    input: Inbox,
     chunk_size: usize,
     discards: usize,
     timeouts: usize,
@@ -394,7 +432,7 @@ impl MockTransport {
     /// assert_eq!(m.read(&mut buf, std::time::Instant::now()).unwrap(), 1);
     /// ```
     pub fn push_input(&mut self, bytes: &[u8]) -> &mut Self {
-        self.input.extend(bytes);
+        self.input.push(bytes.iter().copied());
         self
     }
 
@@ -446,27 +484,17 @@ impl Transport for MockTransport {
     fn write_all(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
         self.written.push(bytes.to_vec());
         if let Some(MockReply::Bytes(reply)) = self.script.pop_front() {
-            self.input.extend(reply);
+            self.input.push(reply);
         }
         Ok(())
     }
 
     fn read(&mut self, buf: &mut [u8], _deadline: Instant) -> Result<usize, TransportError> {
-        if buf.is_empty() {
-            return Ok(0);
-        }
-        if self.input.is_empty() {
+        let result = self.input.read(buf, self.chunk_size);
+        if matches!(result, Err(TransportError::Timeout)) {
             self.timeouts += 1;
-            return Err(TransportError::Timeout);
         }
-        let mut n = buf.len().min(self.input.len());
-        if self.chunk_size > 0 {
-            n = n.min(self.chunk_size);
-        }
-        for (slot, byte) in buf.iter_mut().zip(self.input.drain(..n)) {
-            *slot = byte;
-        }
-        Ok(n)
+        result
     }
 
     fn discard_input(&mut self) -> Result<(), TransportError> {

@@ -3,13 +3,15 @@
 
 use std::time::{Duration, Instant};
 
-use ctr_hw::actuation::{Actuation, JointActuation};
-use ctr_hw::bus::{Bus, BusConfig, BusError};
+use ctr_hw::actuation::Actuation;
+use ctr_hw::bus::{Bus, BusConfig, BusError, BusStats};
 use ctr_hw::control_table as ct;
 use ctr_hw::emulator::{Emulator, EmulatorConfig, Fault, PtyEmulator};
 use ctr_hw::protocol::{instruction, ProtocolError};
 use ctr_hw::rig::{Rig, RigConfig, RigError};
 use ctr_hw::transport::SerialTransport;
+
+mod common;
 
 /// Long enough for a loaded 2-core machine, short enough to keep timeouts cheap.
 const TIMEOUT: Duration = Duration::from_millis(100);
@@ -34,14 +36,37 @@ fn connect(pty: &PtyEmulator) -> Bus<SerialTransport> {
     )
 }
 
+/// A bus on the pseudo-terminal of an emulator running at `time_scale`, and a handle on
+/// the emulator (the server stops when the first element is dropped).
+fn emulated_bus(time_scale: f64) -> (PtyEmulator, Emulator, Bus<SerialTransport>) {
+    let pty = start(time_scale);
+    let emu = pty.emulator().clone();
+    let bus = connect(&pty);
+    (pty, emu, bus)
+}
+
+/// A rig of [`four_joints`] on the pseudo-terminal of an emulator running at
+/// `time_scale`, and a handle on the emulator.
+fn emulated_rig(
+    time_scale: f64,
+    config: RigConfig,
+) -> (PtyEmulator, Emulator, Rig<SerialTransport>) {
+    let (pty, emu, bus) = emulated_bus(time_scale);
+    (pty, emu, Rig::new(bus, four_joints(), config))
+}
+
+/// Writes `data` at `address` of motor `id` with `fault` injected for it; the write
+/// must succeed. Returns how often the register was written and the bus's counters.
+fn write_despite(fault: Fault, id: u8, address: u16, data: &[u8]) -> (usize, BusStats) {
+    let (_pty, emu, mut bus) = emulated_bus(1.0);
+    emu.inject(Some(id), fault);
+    bus.write(id, address, data).unwrap();
+    (writes_of(&emu, id, address).len(), bus.stats())
+}
+
+/// Feeds at 40 mm/s, rotations at 360 degrees/s.
 fn four_joints() -> Actuation {
-    Actuation::new(vec![
-        JointActuation::rotation("alpha1", 1, -180.0, 180.0, 360.0),
-        JointActuation::feed("beta1", 2, 8.0, -60.0, 0.0, 40.0),
-        JointActuation::rotation("alpha2", 3, -180.0, 180.0, 360.0),
-        JointActuation::feed("beta2", 4, 8.0, -30.0, 0.0, 40.0),
-    ])
-    .unwrap()
+    Actuation::new(common::two_tubes(40.0, 360.0)).unwrap()
 }
 
 /// Applied writes of `address` on motor `id`.
@@ -69,13 +94,11 @@ fn pings_all_four_motors_and_reconnects() {
 
 #[test]
 fn rig_moves_and_reads_back() {
-    let pty = start(20.0);
-    let emu = pty.emulator().clone();
-    let mut rig = Rig::new(connect(&pty), four_joints(), RigConfig::default());
+    let (_pty, emu, mut rig) = emulated_rig(20.0, RigConfig::default());
     rig.enable().unwrap();
-    let targets = [90.0, -8.0, -45.0, -4.0];
+    let targets = [-8.0, 90.0, -4.0, -45.0];
     let ticks = rig.move_to(&targets).unwrap();
-    assert_eq!(ticks, [1024, -4096, -512, -2048]);
+    assert_eq!(ticks, [-4096, 1024, -2048, -512]);
     let reached = rig.wait_until_still(Duration::from_secs(5)).unwrap();
     assert_eq!(reached, targets);
     for (id, goal) in (1..=4).zip(ticks) {
@@ -88,9 +111,7 @@ fn rig_moves_and_reads_back() {
 
 #[test]
 fn lost_write_is_resent_once_and_applied_once() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
+    let (_pty, emu, mut bus) = emulated_bus(1.0);
     emu.inject(Some(1), Fault::DropInstruction);
     bus.write(1, ct::GOAL_POSITION, &1000i32.to_le_bytes())
         .unwrap();
@@ -106,47 +127,41 @@ fn lost_write_is_resent_once_and_applied_once() {
 
 #[test]
 fn write_whose_status_is_lost_is_not_resent() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
-    emu.inject(Some(2), Fault::NoReply);
-    bus.write(2, ct::GOAL_POSITION, &777i32.to_le_bytes())
-        .unwrap();
-    assert_eq!(writes_of(&emu, 2, ct::GOAL_POSITION).len(), 1);
-    assert_eq!(bus.stats().packets_sent, 2); // write + read-back
-    assert_eq!(bus.stats().confirmed_by_read_back, 1);
+    let (applied, stats) =
+        write_despite(Fault::NoReply, 2, ct::GOAL_POSITION, &777i32.to_le_bytes());
+    assert_eq!(applied, 1);
+    assert_eq!(stats.packets_sent, 2); // write + read-back
+    assert_eq!(stats.confirmed_by_read_back, 1);
 }
 
 #[test]
 fn write_with_corrupt_status_is_not_resent() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
-    emu.inject(Some(3), Fault::CorruptReplyCrc);
-    bus.write(3, ct::GOAL_POSITION, &(-300i32).to_le_bytes())
-        .unwrap();
-    assert_eq!(writes_of(&emu, 3, ct::GOAL_POSITION).len(), 1);
-    assert_eq!(bus.stats().packets_sent, 2);
-    assert_eq!(bus.stats().confirmed_by_read_back, 1);
+    let (applied, stats) = write_despite(
+        Fault::CorruptReplyCrc,
+        3,
+        ct::GOAL_POSITION,
+        &(-300i32).to_le_bytes(),
+    );
+    assert_eq!(applied, 1);
+    assert_eq!(stats.packets_sent, 2);
+    assert_eq!(stats.confirmed_by_read_back, 1);
 }
 
 #[test]
 fn write_with_truncated_status_is_not_resent() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
-    emu.inject(Some(4), Fault::DropReplyBytes(2));
-    bus.write(4, ct::PROFILE_VELOCITY, &50u32.to_le_bytes())
-        .unwrap();
-    assert_eq!(writes_of(&emu, 4, ct::PROFILE_VELOCITY).len(), 1);
-    assert_eq!(bus.stats().packets_sent, 2);
+    let (applied, stats) = write_despite(
+        Fault::DropReplyBytes(2),
+        4,
+        ct::PROFILE_VELOCITY,
+        &50u32.to_le_bytes(),
+    );
+    assert_eq!(applied, 1);
+    assert_eq!(stats.packets_sent, 2);
 }
 
 #[test]
 fn reads_are_retried_after_dropped_bytes_and_bad_crc() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
+    let (_pty, emu, mut bus) = emulated_bus(1.0);
     emu.inject(Some(1), Fault::DropReplyBytes(3));
     emu.inject(Some(1), Fault::CorruptReplyCrc);
     let value = bus
@@ -159,9 +174,7 @@ fn reads_are_retried_after_dropped_bytes_and_bad_crc() {
 
 #[test]
 fn corrupt_reply_error_names_packet_and_bytes() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
+    let (_pty, emu, mut bus) = emulated_bus(1.0);
     for _ in 0..3 {
         emu.inject(Some(2), Fault::CorruptReplyCrc);
     }
@@ -185,9 +198,7 @@ fn corrupt_reply_error_names_packet_and_bytes() {
 
 #[test]
 fn retries_are_bounded_when_a_motor_stays_silent() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
+    let (_pty, emu, mut bus) = emulated_bus(1.0);
     for _ in 0..10 {
         emu.inject(Some(3), Fault::NoReply);
     }
@@ -220,9 +231,7 @@ fn retries_are_bounded_when_a_motor_stays_silent() {
 
 #[test]
 fn lost_sync_write_is_repaired_once_per_motor() {
-    let pty = start(1.0);
-    let emu = pty.emulator().clone();
-    let mut bus = connect(&pty);
+    let (_pty, emu, mut bus) = emulated_bus(1.0);
     emu.inject(None, Fault::DropInstruction);
     let goals: Vec<[u8; 4]> = (1..=4).map(|i| (i * 100i32).to_le_bytes()).collect();
     let entries: Vec<(u8, &[u8])> = (1..=4u8).zip(&goals).map(|(id, g)| (id, &g[..])).collect();
@@ -235,18 +244,13 @@ fn lost_sync_write_is_repaired_once_per_motor() {
 
 #[test]
 fn overload_stops_the_rig_holds_and_switches_torque_off() {
-    let pty = start(20.0);
-    let emu = pty.emulator().clone();
-    let mut rig = Rig::new(
-        connect(&pty),
-        four_joints(),
-        RigConfig {
-            torque_off_on_fault: true,
-            ..RigConfig::default()
-        },
-    );
+    let config = RigConfig {
+        torque_off_on_fault: true,
+        ..RigConfig::default()
+    };
+    let (_pty, emu, mut rig) = emulated_rig(20.0, config);
     rig.enable().unwrap();
-    rig.move_to(&[170.0, -50.0, 170.0, -25.0]).unwrap();
+    rig.move_to(&[-50.0, 170.0, -25.0, 170.0]).unwrap();
     std::thread::sleep(Duration::from_millis(20));
     emu.inject(Some(2), Fault::Overload);
     let err = rig.positions().unwrap_err();
@@ -274,9 +278,7 @@ fn overload_stops_the_rig_holds_and_switches_torque_off() {
 
 #[test]
 fn every_goal_is_applied_exactly_once_under_mixed_faults() {
-    let pty = start(50.0);
-    let emu = pty.emulator().clone();
-    let mut rig = Rig::new(connect(&pty), four_joints(), RigConfig::default());
+    let (_pty, emu, mut rig) = emulated_rig(50.0, RigConfig::default());
     rig.enable().unwrap();
     let faults = [
         (None, Fault::DropInstruction),
@@ -294,7 +296,7 @@ fn every_goal_is_applied_exactly_once_under_mixed_faults() {
         emu.inject(motor, fault);
         // Every goal differs from the one before it, so each must be applied.
         let s = (step + 1) as f64;
-        let targets = [10.0 * s, -2.0 * s, -10.0 * s, -s - 0.5];
+        let targets = [-2.0 * s, 10.0 * s, -s - 0.5, -10.0 * s];
         sent.push(rig.move_to(&targets).unwrap());
     }
     rig.wait_until_still(Duration::from_secs(5)).unwrap();
