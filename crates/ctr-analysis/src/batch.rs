@@ -180,8 +180,8 @@ impl Default for IkBatchOptions {
 }
 
 /// Solves every target with `ik` (cloned for each worker) and hands the results to
-/// `consume` chunk by chunk, in order, on the calling thread (as [`for_each_chunk`](ctr_formats::parallel::for_each_chunk);
-/// `consume` returning `false` stops the batch).
+/// `consume` chunk by chunk, in order, on the calling thread (as
+/// [`for_each_chunk`]; `consume` returning `false` stops the batch).
 ///
 /// Warm (`options.warm`), the rows are a trajectory: each row starts from the
 /// previous row's result. To run in parallel with results independent of the thread

@@ -32,6 +32,8 @@
 pub mod batch;
 pub mod ik;
 pub mod job;
+pub mod limits;
 pub mod model;
+pub mod rng;
 pub mod simulate;
 pub mod timeline;

@@ -27,9 +27,9 @@
 //! it well; a step that does not is refused and `lambda` grows (2, 4, 8, ... times).
 //! Without it `W_N = diag(damping)` and every step is taken, as in the paper.
 //!
-//! The Jacobian comes from central finite differences of the core's forward
-//! kinematics, solved to tight tolerances (one function, `fk::tip_jacobian`, to be
-//! replaced by the core's analytic Jacobian when it has one).
+//! The Jacobian is the row model's tip Jacobian (the core's analytic one through the
+//! file's static effects; under gravity central differences of the FK solved to tight
+//! tolerances, probes kept inside the limits): see [`crate::model`].
 //!
 //! # Starts
 //!
@@ -89,158 +89,21 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-mod fk;
-mod limits;
+mod options;
 mod qp;
+mod step;
 
-pub use fk::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
-pub use limits::{JointLimits, LimitsError, RotationRange};
+pub use options::{IkError, IkOptions, IkResult, IkStatus};
+use step::{nan_frame, Attempt, End};
 
-use crate::model::{AnyKernel, ModelSpec};
+use crate::limits::JointLimits;
+use crate::model::{file_jacobian, ModelSpec, TipFk};
+use crate::rng::Rng;
 use ctr_core::{Frame, Model};
 use ctr_formats::AnyRobot;
 use ctr_formats::{Effects, IkTarget, RobotSpec, TubeLimits};
-use fk::{log_so3, tip_jacobian, CoreFk, Jacobian, TipFk, MAX_JOINTS};
-use nalgebra::{SMatrix, SVector, Vector3, Vector6};
 
-type Square = SMatrix<f64, MAX_JOINTS, MAX_JOINTS>;
-type Joint = SVector<f64, MAX_JOINTS>;
 use qp::StepQp;
-
-/// How a solve ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum IkStatus {
-    /// The tip is within the tolerances of the target.
-    Reached,
-    /// No start reached the target: every one ended where the distance stops
-    /// decreasing within the limits. `q` is the closest point found (for a target
-    /// outside the workspace, the closest reachable point).
-    Unreachable,
-    /// The closest start was still improving when it ran out of iterations.
-    IterationLimit,
-    /// The forward kinematics could not be solved at any start point.
-    FkFailed,
-}
-
-impl IkStatus {
-    /// Lower-case name for files and messages: `reached`, `unreachable`,
-    /// `iteration_limit`, `fk_failed`.
-    pub fn name(self) -> &'static str {
-        match self {
-            IkStatus::Reached => "reached",
-            IkStatus::Unreachable => "unreachable",
-            IkStatus::IterationLimit => "iteration_limit",
-            IkStatus::FkFailed => "fk_failed",
-        }
-    }
-}
-
-/// The result of one solve.
-#[derive(Clone, Debug, PartialEq)]
-pub struct IkResult {
-    /// Joints `s_1 (mm), theta_1 (rad), ...`, inside the limits
-    /// ([`Ik::to_file_units`] for mm and degrees).
-    pub q: Vec<f64>,
-    /// The tip at `q` (NaN when the status is `FkFailed`).
-    pub tip: Frame<f64>,
-    /// Distance from the tip to the target position, mm.
-    pub residual_mm: f64,
-    /// Angle between the tip and target orientations, rad (`None` for a position-only
-    /// target).
-    pub orientation_residual_rad: Option<f64>,
-    /// Levenberg-Marquardt steps over all starts.
-    pub iterations: u32,
-    /// Starts tried (1 when the first reached).
-    pub starts: u32,
-    /// How it ended.
-    pub status: IkStatus,
-}
-
-/// Settings of the solver. Units: mm and rad.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IkOptions {
-    /// `W_E` on each position component, 1/mm^2 (scales the cost only relative to
-    /// `orientation_weight` and the damping).
-    pub position_weight: f64,
-    /// `W_E` on each orientation component, 1/rad^2 (default 100: 1 rad weighs as 10 mm).
-    pub orientation_weight: f64,
-    /// Constant part of `W_N` on each feed (mm^2 of tip error per mm^2 of feed).
-    pub damping_feed: f64,
-    /// Constant part of `W_N` on each rotation (mm^2 of tip error per rad^2).
-    pub damping_rotation: f64,
-    /// Adapt `lambda M` on top of the constant damping (module docs).
-    pub adaptive_damping: bool,
-    /// Starting `lambda` of each start.
-    pub initial_lambda: f64,
-    /// The length that makes a radian comparable to a millimetre in the adaptive
-    /// damping `lambda M`, `M = diag(1, rotation_scale_mm^2, ...)`, mm.
-    pub rotation_scale_mm: f64,
-    /// Reached when the tip is this close to the target position, mm.
-    pub tolerance_mm: f64,
-    /// ... and, for a pose target, this close in orientation, rad.
-    pub orientation_tolerance_rad: f64,
-    /// Most steps per start.
-    pub max_iterations: u32,
-    /// Further starts after the first when it does not reach.
-    pub restarts: u32,
-    /// Seed of the start table.
-    pub seed: u64,
-    /// Points in the start table (drawn inside the limits when the [`Ik`] is built).
-    pub seed_samples: usize,
-}
-
-impl Default for IkOptions {
-    fn default() -> Self {
-        IkOptions {
-            position_weight: 1.0,
-            orientation_weight: 100.0,
-            damping_feed: 1e-6,
-            damping_rotation: 1e-4,
-            adaptive_damping: true,
-            initial_lambda: 1e-3,
-            rotation_scale_mm: 10.0,
-            tolerance_mm: 1e-4,
-            orientation_tolerance_rad: 1e-4,
-            max_iterations: 100,
-            restarts: 8,
-            seed: 0x5eed,
-            seed_samples: 256,
-        }
-    }
-}
-
-/// Why an [`Ik`] cannot be built.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum IkError {
-    /// The limits are unusable.
-    #[error(transparent)]
-    Limits(#[from] LimitsError),
-    /// An effect of the robot file cannot be inverted row by row (latency, friction),
-    /// or does not fit the robot; the message starts with its key.
-    #[error("{0}")]
-    Effect(String),
-    /// An option is out of its range.
-    #[error("IK option {name} = {value} must be {wanted}")]
-    Option {
-        /// the field of [`IkOptions`]
-        name: &'static str,
-        /// its value
-        value: f64,
-        /// what it must be
-        wanted: &'static str,
-    },
-}
-
-/// Relative decrease of `E` below which an accepted step counts as no progress.
-const STALL_DECREASE: f64 = 1e-4;
-/// Accepted steps without progress in a row that end a start.
-const STALL_STEPS: u32 = 3;
-/// A step shorter than this (mm or rad, largest component) ends a start.
-const MIN_STEP: f64 = 1e-11;
-/// `lambda` beyond which no step can lower `E`: the start ends.
-const MAX_LAMBDA: f64 = 1e12;
-/// Smallest `lambda` (the constant damping stays underneath).
-const MIN_LAMBDA: f64 = 1e-12;
 
 /// An inverse-kinematics solver for one robot, its model and its limits. Holds the
 /// FK warm-start memory, the start table and one clarabel solver; clone it for each
@@ -282,54 +145,6 @@ const _: fn() = || {
     fn send_sync<T: Send + Sync>() {}
     send_sync::<Ik>();
 };
-
-/// SplitMix64: a small deterministic generator for the start table.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// How one start ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum End {
-    Reached,
-    Stalled,
-    IterationLimit,
-    FkFailed,
-}
-
-struct Attempt {
-    q: Vec<f64>,
-    tip: Frame<f64>,
-    cost: f64,
-    iterations: u32,
-    end: End,
-}
-
-fn check_option(
-    name: &'static str,
-    value: f64,
-    ok: bool,
-    wanted: &'static str,
-) -> Result<(), IkError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(IkError::Option {
-            name,
-            value,
-            wanted,
-        })
-    }
-}
 
 impl Ik {
     /// An IK solver for `robot` solved with `model`, within the core's joint ranges and
@@ -383,62 +198,18 @@ impl Ik {
                 )));
             }
         }
-        let o = &options;
-        check_option(
-            "position_weight",
-            o.position_weight,
-            o.position_weight > 0.0,
-            "> 0",
-        )?;
-        check_option(
-            "orientation_weight",
-            o.orientation_weight,
-            o.orientation_weight >= 0.0,
-            ">= 0",
-        )?;
-        check_option("damping_feed", o.damping_feed, o.damping_feed > 0.0, "> 0")?;
-        check_option(
-            "damping_rotation",
-            o.damping_rotation,
-            o.damping_rotation > 0.0,
-            "> 0",
-        )?;
-        check_option(
-            "initial_lambda",
-            o.initial_lambda,
-            o.initial_lambda >= 0.0,
-            ">= 0",
-        )?;
-        check_option(
-            "rotation_scale_mm",
-            o.rotation_scale_mm,
-            o.rotation_scale_mm > 0.0,
-            "> 0",
-        )?;
-        check_option("tolerance_mm", o.tolerance_mm, o.tolerance_mm > 0.0, "> 0")?;
-        check_option(
-            "orientation_tolerance_rad",
-            o.orientation_tolerance_rad,
-            o.orientation_tolerance_rad > 0.0,
-            "> 0",
-        )?;
+        options.check()?;
         let lengths: Vec<f64> = robot.tube_params().iter().map(|p| p.length_mm).collect();
         let limits = JointLimits::new(&lengths, limits)?;
-        let offsets = &rows.time_effects().joint_offset;
-        let fk: Box<dyn TipFk> = match rows.kernel() {
-            AnyKernel::One(k) => Box::new(CoreFk::new(*k, offsets)),
-            AnyKernel::Two(k) => Box::new(CoreFk::new(*k, offsets)),
-            AnyKernel::Three(k) => Box::new(CoreFk::new(*k, offsets)),
-            AnyKernel::Four(k) => Box::new(CoreFk::new(*k, offsets)),
-        };
-        let mut rng = SplitMix(options.seed);
+        let fk = rows.tip_fk();
+        let mut rng = Rng::new(options.seed);
         let n = 2 * limits.n_tubes();
         let mut samples = Vec::with_capacity(options.seed_samples);
         for k in 0..options.seed_samples {
             let q = if k == 0 {
                 limits.center()
             } else {
-                let u: Vec<f64> = (0..n).map(|_| rng.next_f64()).collect();
+                let u: Vec<f64> = (0..n).map(|_| rng.uniform()).collect();
                 limits.point(&u)
             };
             if let Some(tip) = fk.cold(&q) {
@@ -490,6 +261,29 @@ impl Ik {
     /// Joints in solver units (mm, rad) from file units (mm, degrees).
     pub fn from_file_units(&self, joints: &[f64]) -> Vec<f64> {
         self.limits.from_file_units(joints)
+    }
+
+    /// The tip Jacobian at `joints` (file units: `s_1` mm, `theta_1` degrees, ...) as
+    /// the IK computes it: the row model's
+    /// ([`RowModel::tip_jacobian`](crate::model::RowModel::tip_jacobian)), with probes
+    /// kept inside this solver's limits where it takes differences. `None` when the
+    /// joints are outside the core's ranges or the FK does not converge there.
+    ///
+    /// # Panics
+    /// If `joints` does not have `2 n` values.
+    ///
+    /// ```
+    /// use ctr_analysis::ik::{Ik, IkOptions};
+    /// use ctr_core::{Model, TubeParams};
+    /// let t = TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
+    /// let robot = ctr_formats::AnyRobot::new(&[t]).unwrap();
+    /// let options = IkOptions { seed_samples: 0, ..Default::default() };
+    /// let ik = Ik::new(&robot, Model::Torsion, None, options).unwrap();
+    /// let j = ik.tip_jacobian(&[50.0, 30.0]).unwrap();
+    /// assert!((j[0][2] - 1.0).abs() < 1e-6); // feeding moves the tip along z
+    /// ```
+    pub fn tip_jacobian(&self, joints: &[f64]) -> Option<Vec<[f64; 6]>> {
+        file_jacobian(&mut *self.fk.boxed_clone(), &self.limits, joints)
     }
 
     /// The tip at `q` (mm, rad), solved cold with the IK's tight FK tolerances; `None`
@@ -603,14 +397,14 @@ impl Ik {
     /// without a table the middle of the limits and seeded random points.
     fn cold_starts(&self, target: &IkTarget, count: usize) -> Vec<Vec<f64>> {
         if self.samples.is_empty() {
-            let mut rng = SplitMix(self.options.seed);
+            let mut rng = Rng::new(self.options.seed);
             let n = 2 * self.n_tubes();
             return (0..count)
                 .map(|k| {
                     if k == 0 {
                         self.limits.center()
                     } else {
-                        let u: Vec<f64> = (0..n).map(|_| rng.next_f64()).collect();
+                        let u: Vec<f64> = (0..n).map(|_| rng.uniform()).collect();
                         self.limits.point(&u)
                     }
                 })
@@ -628,253 +422,5 @@ impl Ik {
             .take(count)
             .map(|&(_, k)| self.samples[k].0.clone())
             .collect()
-    }
-
-    /// The diagonal of `W_E` (orientation weights 0 for a position-only target).
-    fn weights(&self, target: &IkTarget) -> Vector6<f64> {
-        let o = &self.options;
-        let ow = if target.orientation.is_some() {
-            o.orientation_weight
-        } else {
-            0.0
-        };
-        Vector6::new(
-            o.position_weight,
-            o.position_weight,
-            o.position_weight,
-            ow,
-            ow,
-            ow,
-        )
-    }
-
-    /// The error `target - tip` (position, then orientation or zeros) and
-    /// `E = 1/2 e^T W_E e`.
-    fn error(&self, target: &IkTarget, tip: &Frame<f64>) -> (Vector6<f64>, f64) {
-        let w = self.weights(target);
-        let mut e = Vector6::zeros();
-        e.fixed_rows_mut::<3>(0)
-            .copy_from(&(target.position - tip.position));
-        if let Some(o) = &target.orientation {
-            let r = o.to_rotation_matrix().into_inner() * tip.rotation.transpose();
-            e.fixed_rows_mut::<3>(3).copy_from(&log_so3(&r));
-        }
-        let cost = 0.5 * e.component_mul(&e).dot(&w);
-        (e, cost)
-    }
-
-    /// Position distance (mm) and orientation angle (rad) from the target.
-    fn residuals(&self, target: &IkTarget, tip: &Frame<f64>) -> (f64, Option<f64>) {
-        let pos = (target.position - tip.position).norm();
-        let ori = target.orientation.map(|o| {
-            let r = o.to_rotation_matrix().into_inner() * tip.rotation.transpose();
-            log_so3(&r).norm()
-        });
-        (pos, ori)
-    }
-
-    fn reached(&self, target: &IkTarget, tip: &Frame<f64>) -> bool {
-        let (pos, ori) = self.residuals(target, tip);
-        pos <= self.options.tolerance_mm
-            && ori.is_none_or(|a| a <= self.options.orientation_tolerance_rad)
-    }
-
-    /// One Levenberg-Marquardt run from `q` (inside the limits).
-    fn run(
-        &mut self,
-        target: &IkTarget,
-        mut q: Vec<f64>,
-        observer: &mut dyn FnMut(&[f64]),
-    ) -> Attempt {
-        let n = q.len();
-        let o = self.options;
-        let w = self.weights(target);
-        self.fk.reset();
-        observer(&q);
-        let Some(mut tip) = self.fk.trial(&q) else {
-            return Attempt {
-                q,
-                tip: nan_frame(),
-                cost: f64::INFINITY,
-                iterations: 0,
-                end: End::FkFailed,
-            };
-        };
-        self.fk.accept();
-        let (mut e, mut cost) = self.error(target, &tip);
-        let mut lambda = o.initial_lambda;
-        let mut nu = 2.0;
-        let mut jac = Jacobian::zeros();
-        let mut a = Square::zeros();
-        let mut g = Joint::zeros();
-        let mut fresh = false;
-        let mut stalls = 0;
-        let mut iterations = 0;
-        let end = loop {
-            if self.reached(target, &tip) {
-                break End::Reached;
-            }
-            if iterations >= o.max_iterations {
-                break End::IterationLimit;
-            }
-            iterations += 1;
-            if !fresh {
-                tip_jacobian(&*self.fk, &self.limits, &q, &tip, &mut jac);
-                let mut jw = jac.transpose();
-                for (c, wc) in w.iter().enumerate() {
-                    jw.column_mut(c).scale_mut(*wc);
-                }
-                a = jw * jac;
-                g = jw * e;
-                fresh = true;
-                if !(a.iter().all(|v| v.is_finite()) && g.iter().all(|v| v.is_finite())) {
-                    break End::Stalled;
-                }
-            }
-            let mut h = a;
-            for k in n..MAX_JOINTS {
-                // padding: an identity block gives a zero step there
-                h[(k, k)] = 1.0;
-            }
-            for k in 0..n {
-                let (base, metric) = if k % 2 == 0 {
-                    (o.damping_feed, 1.0)
-                } else {
-                    (
-                        o.damping_rotation,
-                        o.rotation_scale_mm * o.rotation_scale_mm,
-                    )
-                };
-                let adapt = if o.adaptive_damping {
-                    lambda * metric
-                } else {
-                    0.0
-                };
-                h[(k, k)] += base + adapt;
-            }
-            // the unconstrained minimizer is the QP's solution when it stays inside
-            let free = h.cholesky().map(|c| c.solve(&g));
-            let inside = free.as_ref().is_some_and(|dq| {
-                let trial: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + b).collect();
-                self.limits.admits(&trial)
-            });
-            let dq = match (free, inside) {
-                (Some(dq), true) => dq,
-                _ => match self
-                    .qp
-                    .step(&h, &g, &q)
-                    .map(|dq| Joint::from_fn(|k, _| if k < n { dq[k] } else { 0.0 }))
-                {
-                    // dq = 0 is feasible with model value 0: a solution must not be worse
-                    Some(dq)
-                        if 0.5 * dq.dot(&(h * dq)) - g.dot(&dq) <= 1e-12 * g.norm() * dq.norm() =>
-                    {
-                        dq
-                    }
-                    _ => {
-                        // clarabel failed: damp harder, as for a refused step
-                        if !o.adaptive_damping {
-                            break End::Stalled;
-                        }
-                        lambda = (lambda * nu).max(1e-6);
-                        nu *= 2.0;
-                        if lambda > MAX_LAMBDA {
-                            break End::Stalled;
-                        }
-                        continue;
-                    }
-                },
-            };
-            let mut q_new: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + b).collect();
-            self.limits.project(&mut q_new);
-            let moved = q
-                .iter()
-                .zip(&q_new)
-                .enumerate()
-                .map(|(k, (a, b))| {
-                    let d = b - a;
-                    if k % 2 == 1 {
-                        // a wrap of a full turn is no move
-                        let t = std::f64::consts::TAU;
-                        (d - t * (d / t).round()).abs()
-                    } else {
-                        d.abs()
-                    }
-                })
-                .fold(0.0, f64::max);
-            if moved < MIN_STEP {
-                break End::Stalled;
-            }
-            observer(&q_new);
-            let trial = self.fk.trial(&q_new);
-            let accepted = match trial {
-                None => None,
-                Some(t) => {
-                    let (e_new, cost_new) = self.error(target, &t);
-                    (cost_new < cost || !o.adaptive_damping).then_some((t, e_new, cost_new))
-                }
-            };
-            match accepted {
-                Some((t, e_new, cost_new)) => {
-                    // predicted decrease of the Gauss-Newton model for this step
-                    let pred = g.dot(&dq) - 0.5 * dq.dot(&(a * dq));
-                    let rho = if pred > 0.0 {
-                        (cost - cost_new) / pred
-                    } else {
-                        1.0
-                    };
-                    let progress = (cost - cost_new) / cost;
-                    q = q_new;
-                    tip = t;
-                    e = e_new;
-                    cost = cost_new;
-                    self.fk.accept();
-                    fresh = false;
-                    if o.adaptive_damping {
-                        lambda = (lambda
-                            * (1.0_f64 / 3.0).max(1.0 - (2.0 * rho - 1.0_f64).powi(3)))
-                        .max(MIN_LAMBDA);
-                        nu = 2.0;
-                    }
-                    if progress < STALL_DECREASE {
-                        stalls += 1;
-                        if stalls >= STALL_STEPS {
-                            break End::Stalled;
-                        }
-                    } else {
-                        stalls = 0;
-                    }
-                }
-                None => {
-                    if !o.adaptive_damping {
-                        break End::Stalled;
-                    }
-                    lambda = (lambda * nu).max(1e-6);
-                    nu *= 2.0;
-                    if lambda > MAX_LAMBDA {
-                        break End::Stalled;
-                    }
-                }
-            }
-        };
-        let end = if end != End::Reached && self.reached(target, &tip) {
-            End::Reached
-        } else {
-            end
-        };
-        Attempt {
-            q,
-            tip,
-            cost,
-            iterations,
-            end,
-        }
-    }
-}
-
-fn nan_frame() -> Frame<f64> {
-    Frame {
-        rotation: nalgebra::Matrix3::from_element(f64::NAN),
-        position: Vector3::from_element(f64::NAN),
     }
 }

@@ -12,8 +12,8 @@
 //! (`H dq = g`) and only comes here when it leaves the limits: when it stays inside,
 //! it is the QP's solution.
 
-use super::fk::MAX_JOINTS;
-use super::limits::{JointLimits, Row};
+use crate::limits::{JointLimits, Row};
+use crate::model::MAX_JOINTS;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,

@@ -33,9 +33,13 @@
 //! ```
 
 mod kernel;
+mod tip;
 
 pub(crate) use kernel::{AnyKernel, Bound, Kernel};
+pub(crate) use tip::{file_jacobian, log_so3, tip_jacobian, CoreFk, Jacobian, TipFk, MAX_JOINTS};
+pub use tip::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 
+use crate::limits::JointLimits;
 use crate::timeline::{actual_joints, TimeEffects};
 use ctr_core::{Model, SolveError};
 use ctr_formats::{AnyRobot, Effects, ErrorKind, FkResult, RobotSpec};
@@ -182,6 +186,36 @@ impl ModelSpec {
     }
 }
 
+/// Why [`RowModel::tip_jacobian`] gave no Jacobian.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum JacobianError {
+    /// A time effect is on: the tip depends on the rows before it.
+    TimeEffect {
+        /// the effect id
+        effect: &'static str,
+    },
+    /// The forward kinematics does not converge at the joints (or they are outside the
+    /// core's ranges).
+    NoSolution,
+}
+
+impl fmt::Display for JacobianError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            JacobianError::TimeEffect { effect } => write!(
+                f,
+                "model.effects.{effect}: the tip Jacobian is the static model's, and this time \
+                 effect makes the tip depend on the rows before it"
+            ),
+            JacobianError::NoSolution => {
+                f.write_str("no Jacobian: the forward kinematics does not converge there")
+            }
+        }
+    }
+}
+
+impl std::error::Error for JacobianError {}
+
 /// Why [`ModelSpec::fk`] gave no tip.
 #[derive(Clone, Debug, PartialEq)]
 pub enum FkError {
@@ -238,11 +272,6 @@ impl RowModel {
     /// The joint offsets and time effects in file units.
     pub fn time_effects(&self) -> &TimeEffects {
         &self.time
-    }
-
-    /// The mechanics per tube count.
-    pub(crate) fn kernel(&self) -> &AnyKernel {
-        &self.kernel
     }
 
     /// True when an effect needs the rows' order (and for latency their times): the
@@ -343,6 +372,64 @@ impl RowModel {
                 message: other.to_string(),
             },
         }
+    }
+
+    /// The time effect that is on (`latency`, else `friction` with a play), if any:
+    /// with one, a row's tip depends on the rows before it.
+    pub fn time_effect(&self) -> Option<&'static str> {
+        if let Some(effect) = self.needs_times() {
+            return Some(effect);
+        }
+        self.needs_time().then_some("friction")
+    }
+
+    /// The row model's tip as the IK sees it: joint slices in mm and rad, FK solved to
+    /// [`FK_RESIDUAL_TOLERANCE`], the joint offsets added (the time effects are not:
+    /// the IK refuses them).
+    pub(crate) fn tip_fk(&self) -> Box<dyn TipFk> {
+        let offsets = &self.time.joint_offset;
+        match &self.kernel {
+            AnyKernel::One(k) => Box::new(CoreFk::new(*k, offsets)),
+            AnyKernel::Two(k) => Box::new(CoreFk::new(*k, offsets)),
+            AnyKernel::Three(k) => Box::new(CoreFk::new(*k, offsets)),
+            AnyKernel::Four(k) => Box::new(CoreFk::new(*k, offsets)),
+        }
+    }
+
+    /// The tip Jacobian at the commanded `joints` (file order and units), of the tip as
+    /// measured: one column per joint, in joint order; in each, entries 0..3
+    /// `d position / d joint` (mm per mm, mm per degree) and entries 3..6 the tip's
+    /// angular velocity in W (rad per mm, rad per degree). The core's analytic Jacobian
+    /// (through joint offsets, clearance kinks, sensor offset, registration), or under
+    /// gravity central differences with probes inside the core's joint ranges (see
+    /// [`crate::model`]; the IK uses the same function with its limits).
+    ///
+    /// ```
+    /// use ctr_analysis::model::ModelSpec;
+    /// use ctr_formats::AnyRobot;
+    /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
+    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
+    /// let j = rows.tip_jacobian(&[50.0, 30.0])?;
+    /// assert!((j[0][2] - 1.0).abs() < 1e-6); // feeding moves the tip along z
+    /// assert!((j[1][5] - 1f64.to_radians()).abs() < 1e-9); // turning spins it about z
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Panics
+    /// If `joints.len() != 2 * n_tubes`.
+    pub fn tip_jacobian(&self, joints: &[f64]) -> Result<Vec<[f64; 6]>, JacobianError> {
+        if let Some(effect) = self.time_effect() {
+            return Err(JacobianError::TimeEffect { effect });
+        }
+        let lengths: Vec<f64> = self
+            .robot
+            .tube_params()
+            .iter()
+            .map(|p| p.length_mm)
+            .collect();
+        // the core's own ranges only: a robot file's [limits] bound the IK, not the model
+        let ranges = JointLimits::new(&lengths, None).map_err(|_| JacobianError::NoSolution)?;
+        file_jacobian(&mut *self.tip_fk(), &ranges, joints).ok_or(JacobianError::NoSolution)
     }
 
     /// A solver that warm-starts each row from the previous ones.

@@ -37,8 +37,6 @@ pub struct Robot {
     /// IK solvers with `ctr-cli ik`'s default settings, within the file's limits, built
     /// on first use: rigid, torsion.
     ik: [OnceLock<Result<Ik, String>>; 2],
-    /// Jacobian solvers within the core's joint ranges (no start table): rigid, torsion.
-    jacobian: [OnceLock<Result<Ik, String>>; 2],
 }
 
 /// The IK settings `ctr-cli ik` uses by default.
@@ -80,7 +78,6 @@ impl Robot {
             spec,
             source,
             ik: Default::default(),
-            jacobian: Default::default(),
         }
     }
 
@@ -124,30 +121,10 @@ impl Robot {
     }
 
     /// The IK solver of `model` with `ctr-cli ik`'s default settings (within the
-    /// file's limits), or the Jacobian's (within the core's ranges only, no start
-    /// table), built on first use.
-    fn solver(&self, model: Model, for_jacobian: bool) -> Result<&Ik, Fail> {
-        let slots = if for_jacobian {
-            &self.jacobian
-        } else {
-            &self.ik
-        };
-        slots[model_index(model)]
-            .get_or_init(|| {
-                if for_jacobian {
-                    let options = IkOptions {
-                        seed_samples: 0,
-                        ..IkOptions::default()
-                    };
-                    Ik::with_effects(&self.spec.robot, model, &self.spec.effects, None, options)
-                        .map_err(|e| match e {
-                            IkError::Effect(_) => format!("{}: {e}", self.source),
-                            _ => e.to_string(),
-                        })
-                } else {
-                    self.build_ik(model, cli_ik_options())
-                }
-            })
+    /// file's limits), built on first use.
+    fn solver(&self, model: Model) -> Result<&Ik, Fail> {
+        self.ik[model_index(model)]
+            .get_or_init(|| self.build_ik(model, cli_ik_options()))
             .as_ref()
             .map_err(|m| Fail::Input(m.clone()))
     }
@@ -379,10 +356,11 @@ impl Robot {
     ) -> PyResult<Bound<'py, PyAny>> {
         let model = self.model_arg(model)?;
         let threads = threads_arg(threads)?;
+        let fkm = self.row_model(model)?;
         let rows = self.read_joints(q, "q")?;
         let n = self.n_joints();
         let data = py
-            .detach(|| self.jacobians(model, &rows, threads))
+            .detach(|| self.jacobians(&fkm, &rows, threads))
             .map_err(Fail::into_py)?;
         arrays::array(py, data, &shape(&rows, &[6, n]))
     }

@@ -8,7 +8,7 @@ use crate::arrays::Rows;
 use crate::errors::{self, Fail};
 use ctr_analysis::batch::{batch_fk, batch_ik, BatchOptions, IkBatchOptions};
 use ctr_analysis::ik::{IkOptions, IkResult};
-use ctr_analysis::model::RowModel;
+use ctr_analysis::model::{JacobianError, RowModel};
 use ctr_core::{Model, Status};
 use ctr_formats::parallel::map_rows;
 use ctr_formats::{status_name, Error, ErrorKind, IkTarget, Location};
@@ -121,30 +121,30 @@ impl Robot {
         Ok(points.into_iter().flatten().collect())
     }
 
-    /// The tip Jacobians of `rows` (the IK's, per file unit), each row-major 6 x `2 n`.
+    /// The tip Jacobians of `rows` under the row model `fkm` (per file unit,
+    /// [`RowModel::tip_jacobian`]), each row-major 6 x `2 n`.
     pub(super) fn jacobians(
         &self,
-        model: Model,
+        fkm: &RowModel,
         rows: &Rows,
         threads: usize,
     ) -> Result<Vec<f64>, Fail> {
         self.check_joints(rows, "q")?;
-        let ik = self.solver(model, true)?;
         let jacobians = map_rows(
             rows.rows,
             MAP_BLOCK_ROWS,
             threads,
             || (),
-            |(), i| ik.tip_jacobian(rows.row(i)),
+            |(), i| fkm.tip_jacobian(rows.row(i)),
         );
         let mut data = Vec::with_capacity(rows.rows * 6 * self.n_joints());
         for (i, j) in jacobians.into_iter().enumerate() {
-            let Some(j) = j else {
-                return Err(Fail::Solver(format!(
-                    "{}: no Jacobian: the forward kinematics does not converge there",
-                    errors::at("q", i, rows.batched)
-                )));
-            };
+            let j = j.map_err(|e| match e {
+                JacobianError::TimeEffect { .. } => Fail::Input(format!("{}: {e}", self.source)),
+                JacobianError::NoSolution => {
+                    Fail::Solver(format!("{}: {e}", errors::at("q", i, rows.batched)))
+                }
+            })?;
             for r in 0..6 {
                 data.extend(j.iter().map(|column| column[r]));
             }
@@ -173,7 +173,7 @@ impl Robot {
         }
         let built;
         let ik = if options == cli_ik_options() {
-            self.solver(model, false)?
+            self.solver(model)?
         } else {
             built = self.build_ik(model, options).map_err(Fail::Input)?;
             &built

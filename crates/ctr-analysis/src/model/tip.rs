@@ -1,21 +1,21 @@
-//! Forward kinematics and the tip Jacobian as the inverse kinematics sees them.
+//! The row model's tip as the inverse kinematics and the tip Jacobian see it.
 //!
-//! [`TipFk`] hides the tube count: the row model's kernel ([`crate::model`]) and the
+//! [`TipFk`] hides the tube count: the row model's kernel ([`super::Kernel`]) and the
 //! core's `Solver<f64, N>` behind an object that solves joint vectors given as slices
-//! (mm, rad). It keeps the core
-//! solver's warm-start memory for the current iterate, so that trial points and the
-//! finite-difference probes around the iterate start from its converged twist.
+//! (mm, rad), the joint offsets added as the row model adds them (file units). It keeps
+//! the core solver's warm-start memory for the current iterate, so that trial points
+//! and the finite-difference probes around the iterate start from its converged twist.
 //!
-//! [`tip_jacobian`] is the only place the Jacobian comes from. It takes the core's
-//! analytic joint Jacobian ([`TipFk::jacobian`]: the row kernel's, through the joint
-//! offsets, clearance kinks, sensor offset and registration) where the model has one,
-//! and otherwise (gravity, a snap) central finite differences of the core
-//! FK solved to tight tolerances (`residual_tolerance_per_mm` [`FK_RESIDUAL_TOLERANCE`])
-//! with steps [`FD_STEP_MM`] / [`FD_STEP_RAD`], one-sided where a probe would leave the
-//! joint limits.
+//! [`tip_jacobian`] is the only place the tip Jacobian comes from (the IK's steps,
+//! `Ik::tip_jacobian`, [`RowModel::tip_jacobian`](super::RowModel::tip_jacobian)). It
+//! takes the core's analytic joint Jacobian ([`TipFk::jacobian`]: the kernel's, through
+//! the joint offsets, clearance kinks, sensor offset and registration) where the model
+//! has one, and otherwise (gravity) central finite differences of the core FK solved to
+//! tight tolerances (`residual_tolerance_per_mm` [`FK_RESIDUAL_TOLERANCE`]) with steps
+//! [`FD_STEP_MM`] / [`FD_STEP_RAD`], one-sided where a probe would leave the joint limits.
 
-use super::limits::JointLimits;
-use crate::model::Kernel;
+use super::Kernel;
+use crate::limits::JointLimits;
 use ctr_core::{Frame, JointJacobian, Joints, Solver, SolverConfig, Status};
 use ctr_formats::joints_of;
 use nalgebra::{Matrix3, Rotation3, SMatrix, UnitQuaternion, Vector3};
@@ -280,61 +280,43 @@ pub(crate) fn tip_jacobian(
     }
 }
 
-impl super::Ik {
-    /// The tip Jacobian at `joints` (file units: `s_1` mm, `theta_1` degrees, ...) as
-    /// the IK computes it, at the FK solved cold with the IK's tight tolerances: the
-    /// core's analytic Jacobian (through joint offsets, sensor offset and registration),
-    /// or, with gravity or clearance kinks, central differences with probes kept inside
-    /// this solver's limits.
-    /// One column per joint, in joint order; in each, entries 0..3 are
-    /// `d position / d joint` (mm per mm, mm per degree) and entries 3..6 the tip's
-    /// angular velocity in W (rad per mm, rad per degree). `None` when the joints are
-    /// outside the core's ranges or the FK does not converge there.
-    ///
-    /// # Panics
-    /// If `joints` does not have `2 n` values.
-    ///
-    /// ```
-    /// use ctr_analysis::ik::{Ik, IkOptions};
-    /// use ctr_core::{Model, TubeParams};
-    /// let t = TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
-    /// let robot = ctr_formats::AnyRobot::new(&[t]).unwrap();
-    /// let options = IkOptions { seed_samples: 0, ..Default::default() };
-    /// let ik = Ik::new(&robot, Model::Torsion, None, options).unwrap();
-    /// let j = ik.tip_jacobian(&[50.0, 30.0]).unwrap();
-    /// assert!((j[0][2] - 1.0).abs() < 1e-6); // feeding moves the tip along z
-    /// assert!((j[1][5] - 1f64.to_radians()).abs() < 1e-9); // turning spins it about z
-    /// ```
-    pub fn tip_jacobian(&self, joints: &[f64]) -> Option<Vec<[f64; 6]>> {
-        let q = self.from_file_units(joints);
-        let mut fk = self.fk.boxed_clone();
-        fk.reset();
-        let tip = fk.trial(&q)?;
-        fk.accept();
-        let mut jac = Jacobian::zeros();
-        tip_jacobian(&*fk, &self.limits, &q, &tip, &mut jac);
-        let per_degree = 1f64.to_radians();
-        Some(
-            (0..q.len())
-                .map(|c| {
-                    let unit = if c % 2 == 1 { per_degree } else { 1.0 };
-                    core::array::from_fn(|r| jac[(r, c)] * unit)
-                })
-                .collect(),
-        )
-    }
+/// The tip Jacobian at `joints` (file units: `s_1` mm, `theta_1` degrees, ...) with
+/// probes kept inside `limits`, at the FK solved cold (`fk`'s memory is cleared first):
+/// one column per joint, in joint order; in each, entries 0..3 `d position / d joint`
+/// (mm per mm, mm per degree), entries 3..6 the tip's angular velocity in W (rad per
+/// mm, rad per degree). `None` when the FK does not converge at `joints`.
+pub(crate) fn file_jacobian(
+    fk: &mut dyn TipFk,
+    limits: &JointLimits,
+    joints: &[f64],
+) -> Option<Vec<[f64; 6]>> {
+    let q = limits.from_file_units(joints);
+    fk.reset();
+    let tip = fk.trial(&q)?;
+    fk.accept();
+    let mut jac = Jacobian::zeros();
+    tip_jacobian(&*fk, limits, &q, &tip, &mut jac);
+    let per_degree = 1f64.to_radians();
+    Some(
+        (0..q.len())
+            .map(|c| {
+                let unit = if c % 2 == 1 { per_degree } else { 1.0 };
+                core::array::from_fn(|r| jac[(r, c)] * unit)
+            })
+            .collect(),
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// [`CoreFk`] without its analytic Jacobian: `tip_jacobian` falls back to differences.
-    struct DifferencesOnly<const N: usize>(CoreFk<N>);
+    /// A tip without its analytic Jacobian: `tip_jacobian` falls back to differences.
+    struct DifferencesOnly(Box<dyn TipFk>);
 
-    impl<const N: usize> TipFk for DifferencesOnly<N> {
+    impl TipFk for DifferencesOnly {
         fn n_tubes(&self) -> usize {
-            N
+            self.0.n_tubes()
         }
         fn reset(&mut self) {
             self.0.reset()
@@ -352,7 +334,7 @@ mod tests {
             self.0.cold(q)
         }
         fn boxed_clone(&self) -> Box<dyn TipFk> {
-            Box::new(DifferencesOnly(self.0))
+            Box::new(DifferencesOnly(self.0.boxed_clone()))
         }
         fn jacobian(&self, _: &[f64], _: &mut Jacobian) -> bool {
             false
@@ -364,7 +346,7 @@ mod tests {
     /// by its limits gets a zero column on both paths.
     #[test]
     fn analytic_tip_jacobian_equals_the_differences() {
-        use crate::model::{AnyKernel, ModelSpec};
+        use crate::model::ModelSpec;
         use ctr_core::{Model, TubeParams};
         use ctr_formats::{AnyRobot, Registration};
         let t = |od, id, len, cl, r| TubeParams {
@@ -397,11 +379,7 @@ mod tests {
                 model,
                 effects: e.clone(),
             };
-            let rows = spec.rows().unwrap();
-            match rows.kernel() {
-                AnyKernel::Three(k) => CoreFk::new(*k, &rows.time_effects().joint_offset),
-                _ => unreachable!("three tubes"),
-            }
+            spec.rows().unwrap().tip_fk()
         };
         let q = [30.0, 0.2, 60.0, 1.7, 95.0, -1.0];
         let limits = JointLimits::new(&[160.0, 220.0, 280.0], None).unwrap();
@@ -422,14 +400,14 @@ mod tests {
             for model in [Model::Torsion, Model::Rigid] {
                 for lim in [&limits, &pinned] {
                     let mut analytic = core_fk(&e, model);
-                    let mut fd = DifferencesOnly(analytic);
+                    let mut fd = DifferencesOnly(analytic.boxed_clone());
                     let tip = analytic.trial(&q).unwrap();
                     analytic.accept();
                     fd.trial(&q).unwrap();
                     fd.accept();
                     let (mut ja, mut jf) = (Jacobian::zeros(), Jacobian::zeros());
                     assert!(analytic.jacobian(&q, &mut Jacobian::zeros()));
-                    tip_jacobian(&analytic, lim, &q, &tip, &mut ja);
+                    tip_jacobian(&*analytic, lim, &q, &tip, &mut ja);
                     tip_jacobian(&fd, lim, &q, &tip, &mut jf);
                     for c in 0..6 {
                         let (a, f) = (ja.column(c), jf.column(c));

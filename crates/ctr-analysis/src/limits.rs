@@ -97,7 +97,7 @@ impl JointLimits {
     ///
     /// ```
     /// use ctr_formats::TubeLimits;
-    /// use ctr_analysis::ik::JointLimits;
+    /// use ctr_analysis::limits::JointLimits;
     /// let t = TubeLimits { increment_mm: Some([10.0, 50.0]), ..Default::default() };
     /// let l = JointLimits::new(&[160.0, 220.0], Some(&[t, t])).unwrap();
     /// assert!(l.contains(&[20.0, 0.0, 30.0, 3.0]));

@@ -1,0 +1,194 @@
+//! What an IK solve is asked and what it answers: the settings ([`IkOptions`]), the
+//! result ([`IkResult`], [`IkStatus`]) and why a solver cannot be built ([`IkError`]).
+
+#[cfg(doc)]
+use super::Ik;
+use crate::limits::LimitsError;
+use ctr_core::Frame;
+
+/// How a solve ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IkStatus {
+    /// The tip is within the tolerances of the target.
+    Reached,
+    /// No start reached the target: every one ended where the distance stops
+    /// decreasing within the limits. `q` is the closest point found (for a target
+    /// outside the workspace, the closest reachable point).
+    Unreachable,
+    /// The closest start was still improving when it ran out of iterations.
+    IterationLimit,
+    /// The forward kinematics could not be solved at any start point.
+    FkFailed,
+}
+
+impl IkStatus {
+    /// Lower-case name for files and messages: `reached`, `unreachable`,
+    /// `iteration_limit`, `fk_failed`.
+    pub fn name(self) -> &'static str {
+        match self {
+            IkStatus::Reached => "reached",
+            IkStatus::Unreachable => "unreachable",
+            IkStatus::IterationLimit => "iteration_limit",
+            IkStatus::FkFailed => "fk_failed",
+        }
+    }
+}
+
+/// The result of one solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IkResult {
+    /// Joints `s_1 (mm), theta_1 (rad), ...`, inside the limits
+    /// ([`Ik::to_file_units`] for mm and degrees).
+    pub q: Vec<f64>,
+    /// The tip at `q` (NaN when the status is `FkFailed`).
+    pub tip: Frame<f64>,
+    /// Distance from the tip to the target position, mm.
+    pub residual_mm: f64,
+    /// Angle between the tip and target orientations, rad (`None` for a position-only
+    /// target).
+    pub orientation_residual_rad: Option<f64>,
+    /// Levenberg-Marquardt steps over all starts.
+    pub iterations: u32,
+    /// Starts tried (1 when the first reached).
+    pub starts: u32,
+    /// How it ended.
+    pub status: IkStatus,
+}
+
+/// Settings of the solver. Units: mm and rad.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IkOptions {
+    /// `W_E` on each position component, 1/mm^2 (scales the cost only relative to
+    /// `orientation_weight` and the damping).
+    pub position_weight: f64,
+    /// `W_E` on each orientation component, 1/rad^2 (default 100: 1 rad weighs as 10 mm).
+    pub orientation_weight: f64,
+    /// Constant part of `W_N` on each feed (mm^2 of tip error per mm^2 of feed).
+    pub damping_feed: f64,
+    /// Constant part of `W_N` on each rotation (mm^2 of tip error per rad^2).
+    pub damping_rotation: f64,
+    /// Adapt `lambda M` on top of the constant damping (module docs).
+    pub adaptive_damping: bool,
+    /// Starting `lambda` of each start.
+    pub initial_lambda: f64,
+    /// The length that makes a radian comparable to a millimetre in the adaptive
+    /// damping `lambda M`, `M = diag(1, rotation_scale_mm^2, ...)`, mm.
+    pub rotation_scale_mm: f64,
+    /// Reached when the tip is this close to the target position, mm.
+    pub tolerance_mm: f64,
+    /// ... and, for a pose target, this close in orientation, rad.
+    pub orientation_tolerance_rad: f64,
+    /// Most steps per start.
+    pub max_iterations: u32,
+    /// Further starts after the first when it does not reach.
+    pub restarts: u32,
+    /// Seed of the start table.
+    pub seed: u64,
+    /// Points in the start table (drawn inside the limits when the [`Ik`] is built).
+    pub seed_samples: usize,
+}
+
+impl IkOptions {
+    /// Checks every setting's range ([`IkError::Option`] names the first one out of it).
+    pub fn check(&self) -> Result<(), IkError> {
+        let o = self;
+        check_option(
+            "position_weight",
+            o.position_weight,
+            o.position_weight > 0.0,
+            "> 0",
+        )?;
+        check_option(
+            "orientation_weight",
+            o.orientation_weight,
+            o.orientation_weight >= 0.0,
+            ">= 0",
+        )?;
+        check_option("damping_feed", o.damping_feed, o.damping_feed > 0.0, "> 0")?;
+        check_option(
+            "damping_rotation",
+            o.damping_rotation,
+            o.damping_rotation > 0.0,
+            "> 0",
+        )?;
+        check_option(
+            "initial_lambda",
+            o.initial_lambda,
+            o.initial_lambda >= 0.0,
+            ">= 0",
+        )?;
+        check_option(
+            "rotation_scale_mm",
+            o.rotation_scale_mm,
+            o.rotation_scale_mm > 0.0,
+            "> 0",
+        )?;
+        check_option("tolerance_mm", o.tolerance_mm, o.tolerance_mm > 0.0, "> 0")?;
+        check_option(
+            "orientation_tolerance_rad",
+            o.orientation_tolerance_rad,
+            o.orientation_tolerance_rad > 0.0,
+            "> 0",
+        )?;
+        Ok(())
+    }
+}
+
+impl Default for IkOptions {
+    fn default() -> Self {
+        IkOptions {
+            position_weight: 1.0,
+            orientation_weight: 100.0,
+            damping_feed: 1e-6,
+            damping_rotation: 1e-4,
+            adaptive_damping: true,
+            initial_lambda: 1e-3,
+            rotation_scale_mm: 10.0,
+            tolerance_mm: 1e-4,
+            orientation_tolerance_rad: 1e-4,
+            max_iterations: 100,
+            restarts: 8,
+            seed: 0x5eed,
+            seed_samples: 256,
+        }
+    }
+}
+
+/// Why an [`Ik`] cannot be built.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum IkError {
+    /// The limits are unusable.
+    #[error(transparent)]
+    Limits(#[from] LimitsError),
+    /// An effect of the robot file cannot be inverted row by row (latency, friction),
+    /// or does not fit the robot; the message starts with its key.
+    #[error("{0}")]
+    Effect(String),
+    /// An option is out of its range.
+    #[error("IK option {name} = {value} must be {wanted}")]
+    Option {
+        /// the field of [`IkOptions`]
+        name: &'static str,
+        /// its value
+        value: f64,
+        /// what it must be
+        wanted: &'static str,
+    },
+}
+
+fn check_option(
+    name: &'static str,
+    value: f64,
+    ok: bool,
+    wanted: &'static str,
+) -> Result<(), IkError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(IkError::Option {
+            name,
+            value,
+            wanted,
+        })
+    }
+}
