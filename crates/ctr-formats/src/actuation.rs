@@ -24,7 +24,7 @@
 //! A motor position is a signed 32-bit register: limits whose position does not fit it
 //! are refused when the section is validated.
 
-use super::robot_file::Key;
+use super::toml_doc::Key;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 

@@ -144,7 +144,7 @@ pub struct Clearance {
 #[serde(deny_unknown_fields)]
 pub struct Gravity {
     /// Unit direction of gravity in W (`direction_W`).
-    #[serde(rename = "direction_W", deserialize_with = "super::robot_file::exact")]
+    #[serde(rename = "direction_W", deserialize_with = "super::toml_doc::exact")]
     pub direction_w: [f64; 3],
     /// Acceleration, m/s^2 (default 9.81).
     #[serde(default = "standard_gravity")]
@@ -176,7 +176,7 @@ pub struct Precurvature {
 #[serde(deny_unknown_fields)]
 pub struct SensorOffset {
     /// The tracked point in the tip frame, mm.
-    #[serde(deserialize_with = "super::robot_file::exact")]
+    #[serde(deserialize_with = "super::toml_doc::exact")]
     pub offset_mm: [f64; 3],
 }
 
@@ -185,10 +185,10 @@ pub struct SensorOffset {
 #[serde(deny_unknown_fields)]
 pub struct Registration {
     /// `t`, mm.
-    #[serde(default, deserialize_with = "super::robot_file::exact")]
+    #[serde(default, deserialize_with = "super::toml_doc::exact")]
     pub translation_mm: [f64; 3],
     /// Axis of `R` (normalised when used; default `[0, 0, 1]`).
-    #[serde(default = "z_axis", deserialize_with = "super::robot_file::exact")]
+    #[serde(default = "z_axis", deserialize_with = "super::toml_doc::exact")]
     pub rotation_axis: [f64; 3],
     /// Angle of `R` about the axis, degrees (default 0).
     #[serde(default)]

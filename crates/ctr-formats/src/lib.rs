@@ -160,6 +160,7 @@ mod robot_file;
 mod table;
 mod targets;
 mod tips;
+mod toml_doc;
 
 pub use error::{status_name, Error, ErrorKind, Location};
 pub use robot::{canonical_quaternion, joint_columns, joints_of, AnyRobot, FkResult};

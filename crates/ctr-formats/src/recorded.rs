@@ -291,7 +291,7 @@ fn csv_error(e: csv::Error, file: &str) -> Error {
         csv::ErrorKind::Utf8 { err, .. } => {
             format!("field {}: not valid UTF-8 text", err.field() + 1)
         }
-        _ => super::robot_file::one_line(&e.to_string()),
+        _ => super::toml_doc::one_line(&e.to_string()),
     };
     let location = match line {
         Some(l) => Location::line(file, l),

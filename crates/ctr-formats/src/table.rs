@@ -130,7 +130,7 @@ fn csv_error(e: csv::Error, file: &str, line: usize) -> Error {
             message: format!("field {}: not valid UTF-8 text", err.field() + 1),
         },
         other => ErrorKind::Csv {
-            message: super::robot_file::one_line(&format!("{other:?}")),
+            message: super::toml_doc::one_line(&format!("{other:?}")),
         },
     };
     Error::new(Location::line(file, line), kind)
