@@ -219,13 +219,7 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                 return true;
             }
             written += chunk.written;
-            match sink.write(&chunk.text) {
-                Ok(()) => true,
-                Err(e) => {
-                    failed = Some(e);
-                    false
-                }
-            }
+            sink.write_or_stop(&chunk.text, &mut failed)
         },
     );
     if let Some(e) = failed {
@@ -401,6 +395,18 @@ impl Sink {
         result.map_err(|source| self.error(source))
     }
 
+    /// Writes `bytes` for a batch's `consume`: `true` to go on, or `false` with the
+    /// error kept in `failed`.
+    fn write_or_stop(&mut self, bytes: &[u8], failed: &mut Option<Error>) -> bool {
+        match self.write(bytes) {
+            Ok(()) => true,
+            Err(e) => {
+                *failed = Some(e);
+                false
+            }
+        }
+    }
+
     fn error(&self, source: std::io::Error) -> Error {
         Error::new(
             Location::file(self.name()),
@@ -550,13 +556,7 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
             };
             write_ik_row(&mut text, table.carried(row, &columns.carried), &out, pose);
         }
-        match sink.write(&text) {
-            Ok(()) => true,
-            Err(e) => {
-                failed = Some(e);
-                false
-            }
-        }
+        sink.write_or_stop(&text, &mut failed)
     });
     if let Some(e) = failed {
         return Err(e);

@@ -1,7 +1,7 @@
 //! The joint CSV: one configuration per row, header `s1_mm,theta1_deg,...`, other
 //! columns carried through as the raw strings they were.
 
-use super::table::{read_all, read_path, Columns, Table};
+use super::table::{read_all, read_path, table_rows, Columns, Table};
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::{joint_columns, AnyRobot};
 use std::io::Read;
@@ -16,6 +16,8 @@ pub struct JointTable {
 }
 
 impl JointTable {
+    table_rows!();
+
     /// Reads CSV from `reader`; `file` names it in errors.
     ///
     /// ```
@@ -69,16 +71,6 @@ impl JointTable {
         JointTable::from_bytes(data, &file, robot, 1)
     }
 
-    /// The file name used in errors.
-    pub fn file(&self) -> &str {
-        &self.table.file
-    }
-
-    /// The header as found (untrimmed).
-    pub fn header(&self) -> &[String] {
-        &self.table.header
-    }
-
     /// The 1-based line of the header.
     pub fn header_line(&self) -> usize {
         self.table.header_line
@@ -97,26 +89,6 @@ impl JointTable {
     /// The robot's tube count the table was checked against.
     pub fn n_tubes(&self) -> usize {
         self.n_tubes
-    }
-
-    /// Number of data rows.
-    pub fn len(&self) -> usize {
-        self.table.len()
-    }
-
-    /// True when the file has a header only.
-    pub fn is_empty(&self) -> bool {
-        self.table.len() == 0
-    }
-
-    /// The 1-based file line where data row `row` (0-based) starts.
-    pub fn line(&self, row: usize) -> usize {
-        self.table.line(row)
-    }
-
-    /// The raw fields of data row `row`, all columns in header order.
-    pub fn fields(&self, row: usize) -> impl Iterator<Item = &str> {
-        self.table.fields(row)
     }
 
     /// Data row `row`'s fields as CSV text, when it can be copied as it was (see

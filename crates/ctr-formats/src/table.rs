@@ -36,6 +36,44 @@ const QUOTED: usize = usize::MAX;
 /// Rows per chunk of the parallel number parsing.
 const PARSE_CHUNK_ROWS: usize = 4096;
 
+/// The accessors every table of rows read through [`Table`] has (its `table` field):
+/// the file name, the header, row count, a row's line and fields. One definition for
+/// [`JointTable`](crate::JointTable) and [`TargetTable`](crate::TargetTable).
+macro_rules! table_rows {
+    () => {
+        /// The file name used in errors.
+        pub fn file(&self) -> &str {
+            &self.table.file
+        }
+
+        /// The header as found (untrimmed).
+        pub fn header(&self) -> &[String] {
+            &self.table.header
+        }
+
+        /// Number of data rows.
+        pub fn len(&self) -> usize {
+            self.table.len()
+        }
+
+        /// True when the file has a header only.
+        pub fn is_empty(&self) -> bool {
+            self.table.len() == 0
+        }
+
+        /// The 1-based file line where data row `row` (0-based) starts.
+        pub fn line(&self, row: usize) -> usize {
+            self.table.line(row)
+        }
+
+        /// The raw fields of data row `row`, all columns in header order.
+        pub fn fields(&self, row: usize) -> impl Iterator<Item = &str> {
+            self.table.fields(row)
+        }
+    };
+}
+pub(crate) use table_rows;
+
 /// A CSV file read and checked: header, raw fields and numeric values of every row.
 #[derive(Clone, Debug)]
 pub(crate) struct Table {

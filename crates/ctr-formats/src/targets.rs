@@ -4,7 +4,7 @@
 //! other columns carried through as the raw strings they were.
 
 use super::csvout::write_float;
-use super::table::{read_all, read_path, Columns, Table};
+use super::table::{read_all, read_path, table_rows, Columns, Table};
 use super::tips::{write_carried, Carried};
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::{canonical_quaternion, joint_columns};
@@ -87,6 +87,8 @@ pub struct TargetTable {
 }
 
 impl TargetTable {
+    table_rows!();
+
     /// Reads CSV from `reader`; `file` names it in errors. With `position_only`, the
     /// orientation columns, if any, are not read (position targets).
     ///
@@ -141,39 +143,9 @@ impl TargetTable {
         TargetTable::from_bytes(data, &file, position_only, 1)
     }
 
-    /// The file name used in errors.
-    pub fn file(&self) -> &str {
-        &self.table.file
-    }
-
-    /// The header as found (untrimmed).
-    pub fn header(&self) -> &[String] {
-        &self.table.header
-    }
-
     /// True when the targets are poses (the file has `qw,qx,qy,qz` and they are read).
     pub fn has_orientation(&self) -> bool {
         self.table.has_optional
-    }
-
-    /// Number of data rows.
-    pub fn len(&self) -> usize {
-        self.table.len()
-    }
-
-    /// True when the file has a header only.
-    pub fn is_empty(&self) -> bool {
-        self.table.len() == 0
-    }
-
-    /// The 1-based file line where data row `row` (0-based) starts.
-    pub fn line(&self, row: usize) -> usize {
-        self.table.line(row)
-    }
-
-    /// The raw fields of data row `row`, all columns in header order.
-    pub fn fields(&self, row: usize) -> impl Iterator<Item = &str> {
-        self.table.fields(row)
     }
 
     /// The target of data row `row` (its quaternion normalised).

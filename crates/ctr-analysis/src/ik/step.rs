@@ -20,6 +20,19 @@ const MIN_STEP: f64 = 1e-11;
 const MAX_LAMBDA: f64 = 1e12;
 /// Smallest `lambda` (the constant damping stays underneath).
 const MIN_LAMBDA: f64 = 1e-12;
+/// Smallest `lambda` after a refused step: damping that starts from zero must grow.
+const REFUSED_MIN_LAMBDA: f64 = 1e-6;
+
+/// Nielsen's rule for a refused step: `lambda` grows by `nu`, which doubles. `false`
+/// when the start must end (without adaptive damping, or beyond [`MAX_LAMBDA`]).
+fn damp_harder(adaptive: bool, lambda: &mut f64, nu: &mut f64) -> bool {
+    if !adaptive {
+        return false;
+    }
+    *lambda = (*lambda * *nu).max(REFUSED_MIN_LAMBDA);
+    *nu *= 2.0;
+    *lambda <= MAX_LAMBDA
+}
 
 /// How one start ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,12 +196,7 @@ impl Ik {
                     }
                     _ => {
                         // clarabel failed: damp harder, as for a refused step
-                        if !o.adaptive_damping {
-                            break End::Stalled;
-                        }
-                        lambda = (lambda * nu).max(1e-6);
-                        nu *= 2.0;
-                        if lambda > MAX_LAMBDA {
+                        if !damp_harder(o.adaptive_damping, &mut lambda, &mut nu) {
                             break End::Stalled;
                         }
                         continue;
@@ -256,12 +264,7 @@ impl Ik {
                     }
                 }
                 None => {
-                    if !o.adaptive_damping {
-                        break End::Stalled;
-                    }
-                    lambda = (lambda * nu).max(1e-6);
-                    nu *= 2.0;
-                    if lambda > MAX_LAMBDA {
+                    if !damp_harder(o.adaptive_damping, &mut lambda, &mut nu) {
                         break End::Stalled;
                     }
                 }
