@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Import cycles between the source files of each crate under crates/*/src.
+"""The house rules of crates/*/src: no import cycles between the files of a crate, and
+no source file longer than MAX_LINES lines before its `#[cfg(test)]` module.
 
-    python3 scripts/check_cycles.py        # exit 1 and print the cycles if there are any
+    python3 scripts/check_house.py         # exit 1 and print what breaks a rule
 
 A file depends on another when it names a module path into it (`use crate::a::B`,
 `super::b::c(...)`, a serde `with = "super::b::f"`, ...). A name that a module file
@@ -16,6 +17,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+# Longest source file, lines before its test module.
+MAX_LINES = 700
 PATH = re.compile(r"\b(crate|super|self)((?:::(?:\w+|\{[^;]*?\}))+)")
 REEXPORT = re.compile(r"pub(?:\([\w:]+\))?\s+use\s+([\w:]+)::\{?([^;]*?)\}?;", re.S)
 
@@ -140,8 +143,22 @@ def cycles(graph: dict) -> list:
     return out
 
 
+def long_files() -> list:
+    """(lines before the test module, path) of every source file over MAX_LINES."""
+    out = []
+    for f in sorted(ROOT.glob("crates/*/src/**/*.rs")):
+        lines = f.read_text().split("\n")
+        cut = next((i for i, l in enumerate(lines) if l.startswith("#[cfg(test)]")), len(lines))
+        if cut > MAX_LINES:
+            out.append((cut, str(f.relative_to(ROOT))))
+    return out
+
+
 def main() -> int:
     found = []
+    for n, f in long_files():
+        found.append(f)
+        print(f"too long: {f}: {n} lines before its tests (at most {MAX_LINES})")
     for src in sorted(ROOT.glob("crates/*/src")):
         graph = crate_graph(src)
         for comp in cycles(graph):
@@ -151,7 +168,7 @@ def main() -> int:
                 for b in sorted(graph[a] & set(comp)):
                     print(f"  {a} -> {b}")
     if not found:
-        print("no import cycles between files")
+        print(f"no import cycles between files; no source file over {MAX_LINES} lines")
     return 1 if found else 0
 
 
