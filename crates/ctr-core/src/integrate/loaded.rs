@@ -246,7 +246,7 @@ fn section<T: Real, S: Num<T>, const N: usize>(
     let sixth = h / c(6.0);
     let mut s = sec.start;
     let mut k1 = rhs(sec, &ctx.gj, st, ctx.force(s));
-    for _ in 0..n {
+    for i in 0..n {
         let step = Step {
             sec,
             gj: &ctx.gj,
@@ -268,8 +268,11 @@ fn section<T: Real, S: Num<T>, const N: usize>(
         }
         trace(st);
         s += h;
-        // the next step starts where this one ended (first same as last)
-        k1 = rhs(sec, &ctx.gj, st, step.end);
+        // the next step starts where this one ended (first same as last); after the
+        // section's last step the next section starts with its own
+        if i + 1 < n {
+            k1 = rhs(sec, &ctx.gj, st, step.end);
+        }
     }
 }
 
