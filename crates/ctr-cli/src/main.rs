@@ -12,7 +12,7 @@ mod plots;
 mod progress;
 
 use clap::Parser;
-use cli::{Cli, Command, FkArgs, IkArgs, ModelArg, OnErrorArg};
+use cli::{Cli, Command, FkArgs, IkArgs, OnErrorArg};
 use ctr_analysis::ik::IkOptions;
 use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, OnError, Output};
 use ctr_core::Model;
@@ -106,13 +106,6 @@ fn output(path: Option<PathBuf>) -> Output {
     }
 }
 
-fn model(m: ModelArg) -> Model {
-    match m {
-        ModelArg::Rigid => Model::Rigid,
-        ModelArg::Torsion => Model::Torsion,
-    }
-}
-
 fn ik(args: IkArgs) -> Result<(), Failure> {
     let robot = input(&args.robot);
     let targets = input(&args.targets);
@@ -125,7 +118,7 @@ fn ik(args: IkArgs) -> Result<(), Failure> {
         robot,
         targets,
         output: output(args.output),
-        model: args.model.map(model),
+        model: args.model.map(Model::from),
         options: IkOptions {
             position_weight: args.position_weight,
             orientation_weight: args.orientation_weight,
@@ -192,7 +185,7 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
         robot,
         joints,
         output: output(args.output),
-        model: args.model.map(model),
+        model: args.model.map(Model::from),
         on_error: match args.on_error {
             OnErrorArg::Fail => OnError::Fail,
             OnErrorArg::Skip => OnError::Skip,

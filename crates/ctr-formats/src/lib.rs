@@ -178,6 +178,7 @@ pub use recorded::{RecordedRow, Recording, Run};
 pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{
     LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile, TubeLimits,
+    UnknownModelKind,
 };
 pub use targets::{
     ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow, IkTarget, TargetTable,

@@ -7,7 +7,7 @@ use crate::arrays::{self, Rows};
 use crate::errors::{self, Fail};
 use ctr_analysis::model::RowModel;
 use ctr_core::Model;
-use ctr_formats::{Error, ErrorKind, IkTarget};
+use ctr_formats::{Error, ErrorKind, IkTarget, ModelKind};
 use nalgebra::{Quaternion, UnitQuaternion};
 use pyo3::prelude::*;
 
@@ -29,15 +29,14 @@ pub(crate) fn threads_arg(threads: usize) -> PyResult<usize> {
 }
 
 impl Robot {
-    /// `model` or the file's.
+    /// `model` (a [`ModelKind`] name) or the file's.
     pub(super) fn model_arg(&self, model: Option<&str>) -> PyResult<Model> {
         match model {
             None => Ok(self.spec.model),
-            Some("rigid") => Ok(Model::Rigid),
-            Some("torsion") => Ok(Model::Torsion),
-            Some(other) => Err(errors::input(format!(
-                "model: \"{other}\" is not a model (rigid or torsion)"
-            ))),
+            Some(name) => name
+                .parse::<ModelKind>()
+                .map(Model::from)
+                .map_err(|e| errors::input(format!("model: {e}"))),
         }
     }
 

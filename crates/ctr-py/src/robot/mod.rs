@@ -16,8 +16,7 @@ use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::{Ik, IkError, IkOptions};
 use ctr_analysis::model::{ModelError, ModelSpec, RowModel};
 use ctr_core::Model;
-use ctr_formats::RobotSpec;
-use ctr_formats::{Error, ErrorKind, Location};
+use ctr_formats::{Error, ErrorKind, Location, ModelKind, RobotSpec};
 use pyo3::prelude::*;
 use pyo3::types::{PyTuple, PyType};
 use pyo3::IntoPyObjectExt;
@@ -53,13 +52,6 @@ fn model_index(model: Model) -> usize {
     match model {
         Model::Rigid => 0,
         Model::Torsion => 1,
-    }
-}
-
-fn model_name(model: Model) -> &'static str {
-    match model {
-        Model::Rigid => "rigid",
-        Model::Torsion => "torsion",
     }
 }
 
@@ -242,7 +234,7 @@ impl Robot {
     /// The file's `[model] kind`: `"rigid"` or `"torsion"`.
     #[getter]
     fn model(&self) -> &'static str {
-        model_name(self.spec.model)
+        ModelKind::from(self.spec.model).name()
     }
 
     /// Joint names in file order: `s1_mm, theta1_deg, ...`.
