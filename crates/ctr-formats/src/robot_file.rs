@@ -450,6 +450,27 @@ impl RobotSpec {
         })
     }
 
+    /// Parses and validates a robot file's bytes, as `ctr-cli fk`/`ik` and `ctr_py` read
+    /// them: UTF-8 (else an error reading `file`, at the first bad byte), then TOML
+    /// ([`from_toml_str`](Self::from_toml_str)); `file` names it in errors.
+    ///
+    /// ```
+    /// let err = ctr_formats::RobotSpec::from_bytes(b"name = \"x\xff\"".to_vec(), "r.toml").unwrap_err();
+    /// assert_eq!(err.to_string(), "r.toml: cannot read: invalid utf-8 sequence of 1 bytes from index 9");
+    /// ```
+    pub fn from_bytes(bytes: Vec<u8>, file: &str) -> Result<RobotSpec, Error> {
+        let text = String::from_utf8(bytes).map_err(|e| {
+            Error::new(
+                Location::file(file),
+                ErrorKind::Io {
+                    action: "read",
+                    source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+                },
+            )
+        })?;
+        RobotSpec::from_toml_str(&text, file)
+    }
+
     /// Reads, parses and validates a robot file; errors name the path as given.
     pub fn from_path(path: &Path) -> Result<RobotSpec, Error> {
         let file = path.display().to_string();

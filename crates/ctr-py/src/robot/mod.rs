@@ -180,7 +180,7 @@ impl Robot {
     fn from_toml(_cls: &Bound<'_, PyType>, py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let name = path.display().to_string();
         py.detach(|| {
-            // as `ctr-cli` reads it: bytes, then UTF-8, then TOML
+            // as `ctr-cli fk` reads it: bytes, then UTF-8 and TOML
             let bytes = std::fs::read(&path).map_err(|source| {
                 Error::new(
                     Location::file(&name),
@@ -190,16 +190,7 @@ impl Robot {
                     },
                 )
             })?;
-            let text = String::from_utf8(bytes).map_err(|e| {
-                Error::new(
-                    Location::file(&name),
-                    ErrorKind::Io {
-                        action: "read",
-                        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-                    },
-                )
-            })?;
-            RobotSpec::from_toml_str(&text, &name)
+            RobotSpec::from_bytes(bytes, &name)
         })
         .map(|spec| Robot::new(spec, name.clone()))
         .map_err(|e| errors::to_py(&e))
