@@ -3,12 +3,15 @@
 //! `Recording`, with the CLI's options (the same strings for `holdout` and the
 //! effects) and messages.
 //!
-//! A `Report` keeps the report as the JSON text `ctr-cli diagnose --report` writes
-//! (`to_dict()` parses it with Python's `json`, so it equals the parsed CLI file
-//! exactly, `NaN` written as `null` included), the CLI's summary text and the fitted
-//! model as a `Robot` (the robot file `--out` writes, without its comment line).
+//! A `Report` keeps the report as the compact JSON text `serde_json` writes of it, that
+//! text parsed once by Python's `json` into a [`Json`] tree (so `to_dict()` and the
+//! attributes equal the parsed CLI file exactly, `NaN` written as `null` included, and
+//! the indented text is `serde_json`'s, as `ctr-cli diagnose --report` writes it), the
+//! CLI's summary text and the fitted model as a `Robot` (the robot file `--out` writes,
+//! without its comment line).
 
 use crate::errors;
+use crate::json::Json;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::model::ModelSpec;
@@ -119,8 +122,10 @@ fn recording_arg<'a>(
 /// A diagnosis's or calibration's report; see `_ctr.pyi`.
 #[pyclass(frozen, module = "ctr_py", name = "Report")]
 pub struct Report {
-    /// The report as `ctr-cli --report` writes it (compact).
+    /// The report's JSON text, compact (as pickled).
     json: String,
+    /// The same, parsed once.
+    value: Json,
     /// The CLI's summary text.
     summary: String,
     /// The fitted model.
@@ -139,19 +144,43 @@ impl Report {
         let json = serde_json::to_string(&d.report)
             .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
         let fitted = d.fitted_spec(robot.spec());
+        let fitted = Robot::new(fitted, format!("{} (fitted)", robot.source_name()));
+        Report::from_json(
+            py,
+            json,
+            d.report.summary(&rec.file),
+            Py::new(py, fitted)?,
+            rec.file.clone(),
+        )
+    }
+
+    /// A report of its JSON text (a JSON object), parsed here once.
+    fn from_json(
+        py: Python<'_>,
+        json: String,
+        summary: String,
+        fitted: Py<Robot>,
+        recording: String,
+    ) -> PyResult<Self> {
+        let parsed = py
+            .import("json")?
+            .call_method1("loads", (&json,))
+            .ok()
+            .filter(|v| v.is_instance_of::<PyDict>())
+            .ok_or_else(|| errors::input("Report state: the report is not a JSON object".into()))?;
+        let value =
+            Json::from_py(&parsed).map_err(|m| errors::input(format!("Report state: {m}")))?;
         Ok(Report {
             json,
-            summary: d.report.summary(&rec.file),
-            fitted: Py::new(
-                py,
-                Robot::new(fitted, format!("{} (fitted)", robot.source_name())),
-            )?,
-            recording: rec.file.clone(),
+            value,
+            summary,
+            fitted,
+            recording,
         })
     }
 
     fn item<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
-        self.to_dict(py)?.get_item(key)
+        self.value.item(py, key)
     }
 }
 
@@ -166,21 +195,7 @@ impl Report {
         fitted: Py<Robot>,
         recording: String,
     ) -> PyResult<Self> {
-        let ok = py
-            .import("json")?
-            .call_method1("loads", (&json,))
-            .is_ok_and(|v| v.is_instance_of::<PyDict>());
-        if !ok {
-            return Err(errors::input(
-                "Report state: the report is not a JSON object".into(),
-            ));
-        }
-        Ok(Report {
-            json,
-            summary,
-            fitted,
-            recording,
-        })
+        Report::from_json(py, json, summary, fitted, recording)
     }
 
     #[allow(clippy::type_complexity)]
@@ -217,19 +232,22 @@ impl Report {
         ))
     }
 
-    /// The report as plain dicts, lists, str, int and float (`None` for `null`).
+    /// The report as plain dicts, lists, str, int and float (`None` for `null`), new on
+    /// every call.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?.call_method1("loads", (&self.json,))
+        self.value.to_py(py)
     }
 
-    /// The report's JSON text, as `ctr-cli --report` writes it (indented, with a final
-    /// newline) or compact.
+    /// The report's JSON text, as `ctr-cli --report` writes it (`serde_json`'s
+    /// two-space indents, a final newline) or compact.
     #[pyo3(signature = (indent = true))]
-    fn to_json(&self, indent: bool) -> String {
+    fn to_json(&self, indent: bool) -> PyResult<String> {
         if indent {
-            indent_json(&self.json) + "\n"
+            serde_json::to_string_pretty(&self.value)
+                .map(|text| text + "\n")
+                .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))
         } else {
-            self.json.clone()
+            Ok(self.json.clone())
         }
     }
 
@@ -313,64 +331,6 @@ impl Report {
     fn failed_rows<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         self.item(py, "failed_rows")
     }
-}
-
-/// Indents compact JSON text by two spaces per level, as `serde_json::to_string_pretty`
-/// does, without re-printing any number.
-fn indent_json(compact: &str) -> String {
-    let mut out = String::with_capacity(compact.len() * 2);
-    let mut depth = 0usize;
-    let mut in_string = false;
-    let mut escaped = false;
-    let mut chars = compact.chars().peekable();
-    let newline = |out: &mut String, depth: usize| {
-        out.push('\n');
-        for _ in 0..depth {
-            out.push_str("  ");
-        }
-    };
-    while let Some(c) = chars.next() {
-        if in_string {
-            out.push(c);
-            if escaped {
-                escaped = false;
-            } else if c == '\\' {
-                escaped = true;
-            } else if c == '"' {
-                in_string = false;
-            }
-            continue;
-        }
-        match c {
-            '"' => {
-                in_string = true;
-                out.push(c);
-            }
-            '{' | '[' => {
-                out.push(c);
-                let close = if c == '{' { '}' } else { ']' };
-                if chars.peek() == Some(&close) {
-                    out.push(close);
-                    chars.next();
-                } else {
-                    depth += 1;
-                    newline(&mut out, depth);
-                }
-            }
-            '}' | ']' => {
-                depth = depth.saturating_sub(1);
-                newline(&mut out, depth);
-                out.push(c);
-            }
-            ',' => {
-                out.push(c);
-                newline(&mut out, depth);
-            }
-            ':' => out.push_str(": "),
-            _ => out.push(c),
-        }
-    }
-    out
 }
 
 /// Diagnoses a robot's model against a recording; see `_ctr.pyi`.
@@ -522,19 +482,6 @@ pub fn evaluate<'py>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn indent_equals_serde_pretty() {
-        let v = serde_json::json!({
-            "a": [1.5, {"b": "x,\"y\":[z]", "c": []}, {}],
-            "d": {"e": null, "f": -0.1e-300, "g": [[1], [2, 3]]},
-        });
-        let compact = serde_json::to_string(&v).unwrap();
-        assert_eq!(
-            indent_json(&compact),
-            serde_json::to_string_pretty(&v).unwrap()
-        );
-    }
 
     #[test]
     fn holdout_and_effect_strings_as_the_cli() {
