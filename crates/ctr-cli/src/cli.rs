@@ -4,7 +4,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
 use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::IkOptions;
-use ctr_formats::ModelKind;
+use ctr_formats::{ModelKind, ORIENTATION_TOLERANCE_DEG};
 use ctr_hw::emulator::Fault;
 use std::path::PathBuf;
 
@@ -458,7 +458,7 @@ pub struct IkArgs {
     pub tolerance_mm: f64,
 
     /// ... and, for a pose target, this close in orientation, degrees.
-    #[arg(long, value_name = "DEG", default_value_t = 0.0057, value_parser = parse_positive)]
+    #[arg(long, value_name = "DEG", default_value_t = ORIENTATION_TOLERANCE_DEG, value_parser = parse_positive)]
     pub orientation_tolerance_deg: f64,
 
     /// Weight W_E of the position error, per mm^2.

@@ -6,7 +6,7 @@ use crate::plots;
 use crate::Failure;
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
-use ctr_formats::{AtomicFile, Recording, RobotSpec};
+use ctr_formats::{AtomicFile, Recording, RobotSpec, CLEARANCE_FIT_TABLE_SIZES};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -64,7 +64,7 @@ pub struct CalibrateArgs {
     pub holdout: Option<Holdout>,
     /// With --fit clearance: a smooth table of N values per pair over one turn (the
     /// seed's measured "database", written as table_deg) instead of a cosine profile.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(3..=72))]
+    #[arg(long, value_name = "N", value_parser = table_size_parser())]
     pub table: Option<u16>,
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
@@ -80,6 +80,12 @@ pub struct EvaluateArgs {
     /// The recording.
     #[arg(long, value_name = "REC.csv")]
     pub recording: PathBuf,
+}
+
+/// `--table`: a size in [`CLEARANCE_FIT_TABLE_SIZES`].
+fn table_size_parser() -> clap::builder::RangedI64ValueParser<u16> {
+    let (low, high) = CLEARANCE_FIT_TABLE_SIZES.into_inner();
+    clap::value_parser!(u16).range(low as i64..=high as i64)
 }
 
 fn parse_effect(s: &str) -> Result<EffectId, String> {

@@ -16,13 +16,11 @@ use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
+use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use std::borrow::Cow;
 use std::path::PathBuf;
-
-/// `calibrate --table`'s range.
-const TABLE_RANGE: std::ops::RangeInclusive<usize> = 3..=72;
 
 /// `holdout=`: `None` (the default split, blocks:4) or the CLI's string.
 fn holdout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Holdout> {
@@ -386,12 +384,12 @@ pub fn calibrate(
     }
     let table = match table {
         None => None,
-        Some(k) if k >= 0 && TABLE_RANGE.contains(&(k as usize)) => Some(k as usize),
+        Some(k) if k >= 0 && CLEARANCE_FIT_TABLE_SIZES.contains(&(k as usize)) => Some(k as usize),
         Some(k) => {
             return Err(errors::input(format!(
                 "table: {k} is not in {}..={}",
-                TABLE_RANGE.start(),
-                TABLE_RANGE.end()
+                CLEARANCE_FIT_TABLE_SIZES.start(),
+                CLEARANCE_FIT_TABLE_SIZES.end()
             )))
         }
     };

@@ -16,16 +16,13 @@ use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::{Ik, IkError, IkOptions};
 use ctr_analysis::model::{ModelError, ModelSpec, RowModel};
 use ctr_core::Model;
-use ctr_formats::{Error, ErrorKind, Location, ModelKind, RobotSpec};
+use ctr_formats::{Error, ErrorKind, Location, ModelKind, RobotSpec, ORIENTATION_TOLERANCE_DEG};
 use pyo3::prelude::*;
 use pyo3::types::{PyTuple, PyType};
 use pyo3::IntoPyObjectExt;
 use solve::Inverse;
 use std::path::PathBuf;
 use std::sync::OnceLock;
-
-/// `ctr-cli ik --orientation-tolerance-deg`'s default.
-const CLI_ORIENTATION_TOLERANCE_DEG: f64 = 0.0057;
 
 /// A robot read from a robot TOML file (tubes, `[model]`, `[limits]`, `[actuation]`).
 #[pyclass(frozen, module = "ctr_py", name = "Robot")]
@@ -43,7 +40,7 @@ pub struct Robot {
 /// The IK settings `ctr-cli ik` uses by default.
 pub(super) fn cli_ik_options() -> IkOptions {
     IkOptions {
-        orientation_tolerance_rad: CLI_ORIENTATION_TOLERANCE_DEG.to_radians(),
+        orientation_tolerance_rad: ORIENTATION_TOLERANCE_DEG.to_radians(),
         ..IkOptions::default()
     }
 }
@@ -379,7 +376,7 @@ impl Robot {
         cold = false,
         chunk_rows = IK_CHUNK_ROWS,
         tolerance_mm = IkOptions::default().tolerance_mm,
-        orientation_tolerance_deg = CLI_ORIENTATION_TOLERANCE_DEG,
+        orientation_tolerance_deg = ORIENTATION_TOLERANCE_DEG,
         position_weight = IkOptions::default().position_weight,
         orientation_weight = IkOptions::default().orientation_weight,
         damping_feed = IkOptions::default().damping_feed,
