@@ -13,6 +13,13 @@ use pyo3::prelude::*;
 /// Most worker threads a call may ask for (each is an OS thread).
 pub(crate) const MAX_THREADS: usize = 1024;
 
+/// The effect that makes a model need its rows in time order, by name: `latency` (it
+/// also needs their times) or `friction`; `None` when the model has no time effect.
+pub(super) fn time_effect(fkm: &RowModel) -> Option<&'static str> {
+    fkm.needs_time()
+        .then(|| fkm.needs_times().unwrap_or("friction"))
+}
+
 /// `threads` checked: 0 (all cores) to [`MAX_THREADS`].
 pub(crate) fn threads_arg(threads: usize) -> PyResult<usize> {
     if threads > MAX_THREADS {
@@ -79,12 +86,7 @@ impl Robot {
         rows: &Rows,
     ) -> PyResult<Option<Vec<f64>>> {
         let Some(obj) = t_s else {
-            if fkm.needs_time() {
-                let effect = if fkm.needs_times().is_some() {
-                    "latency"
-                } else {
-                    "friction"
-                };
+            if let Some(effect) = time_effect(fkm) {
                 return Err(errors::input(format!(
                     "{}: model.effects.{effect} acts along time: pass t_s= (the rows' times, \
                      seconds, non-decreasing; the rows are then one run in order)",

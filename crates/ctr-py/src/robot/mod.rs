@@ -321,12 +321,7 @@ impl Robot {
     ) -> PyResult<Bound<'py, PyAny>> {
         let model = self.model_arg(model)?;
         let fkm = self.row_model(model)?;
-        if fkm.needs_time() {
-            let effect = if fkm.needs_times().is_some() {
-                "latency"
-            } else {
-                "friction"
-            };
+        if let Some(effect) = args::time_effect(&fkm) {
             return Err(errors::input(format!(
                 "{}: model.effects.{effect}: backbone solves one joint vector, and this time \
                  effect makes the shape depend on the rows before it; use fk with t_s for the \
