@@ -99,6 +99,18 @@ fn input(path: &Path) -> Input {
     }
 }
 
+/// The robot file's input and the data file's (`--joints`, `--targets`: `flag`); at
+/// most one of them reads standard input.
+fn inputs(robot: &Path, data: &Path, flag: &str) -> Result<(Input, Input), Failure> {
+    let (robot, data) = (input(robot), input(data));
+    if robot == Input::Stdin && data == Input::Stdin {
+        return Err(Failure::Input(format!(
+            "--robot and {flag} cannot both read standard input (-)"
+        )));
+    }
+    Ok((robot, data))
+}
+
 fn output(path: Option<PathBuf>) -> Output {
     match path {
         Some(p) if p != Path::new("-") => Output::Path(p),
@@ -107,13 +119,7 @@ fn output(path: Option<PathBuf>) -> Output {
 }
 
 fn ik(args: IkArgs) -> Result<(), Failure> {
-    let robot = input(&args.robot);
-    let targets = input(&args.targets);
-    if robot == Input::Stdin && targets == Input::Stdin {
-        return Err(Failure::Input(
-            "--robot and --targets cannot both read standard input (-)".into(),
-        ));
-    }
+    let (robot, targets) = inputs(&args.robot, &args.targets, "--targets")?;
     let job = IkJob {
         robot,
         targets,
@@ -174,13 +180,7 @@ fn ik(args: IkArgs) -> Result<(), Failure> {
 }
 
 fn fk(args: FkArgs) -> Result<(), Failure> {
-    let robot = input(&args.robot);
-    let joints = input(&args.joints);
-    if robot == Input::Stdin && joints == Input::Stdin {
-        return Err(Failure::Input(
-            "--robot and --joints cannot both read standard input (-)".into(),
-        ));
-    }
+    let (robot, joints) = inputs(&args.robot, &args.joints, "--joints")?;
     let job = FkJob {
         robot,
         joints,
