@@ -15,7 +15,7 @@ use crate::json::Json;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
 use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -331,6 +331,24 @@ impl Report {
     }
 }
 
+/// Runs `fit` (a diagnosis or calibration) on the robot's model and the recording with
+/// the GIL released: the report, or the error located at the recording as `ctr-cli`
+/// prints it.
+fn fit_report(
+    py: Python<'_>,
+    robot: &Robot,
+    recording: &Bound<'_, PyAny>,
+    fit: impl FnOnce(&ModelSpec, &ctr_formats::Recording) -> Result<Diagnosis, DiagnoseError> + Send,
+) -> PyResult<Report> {
+    let rec = recording_arg(py, recording, robot)?;
+    let model = ModelSpec::from_spec(robot.spec());
+    let rec_ref: &ctr_formats::Recording = &rec;
+    let d = py
+        .detach(|| fit(&model, rec_ref))
+        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
+    Report::new(py, &d, robot, &rec)
+}
+
 /// Diagnoses a robot's model against a recording; see `_ctr.pyi`.
 #[pyfunction]
 #[pyo3(signature = (robot, recording, *, holdout = None, effects = None, threads = None))]
@@ -352,13 +370,9 @@ pub fn diagnose(
         threads: threads_opt(threads)?,
         clearance_table: None,
     };
-    let rec = recording_arg(py, recording, robot)?;
-    let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &ctr_formats::Recording = &rec;
-    let d = py
-        .detach(|| ctr_diagnosis::diagnose(&model, rec_ref, &options))
-        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
-    Report::new(py, &d, robot, &rec)
+    fit_report(py, robot, recording, |model, rec| {
+        ctr_diagnosis::diagnose(model, rec, &options)
+    })
 }
 
 /// Fits the named effects' parameters; see `_ctr.pyi`.
@@ -399,13 +413,9 @@ pub fn calibrate(
         clearance_table: table,
         ..Options::default()
     };
-    let rec = recording_arg(py, recording, robot)?;
-    let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &ctr_formats::Recording = &rec;
-    let d = py
-        .detach(|| ctr_diagnosis::calibrate(&model, rec_ref, &fit, &options))
-        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
-    Report::new(py, &d, robot, &rec)
+    fit_report(py, robot, recording, |model, rec| {
+        ctr_diagnosis::calibrate(model, rec, &fit, &options)
+    })
 }
 
 /// Mean and largest tip error per run for several models; see `_ctr.pyi`.
