@@ -143,7 +143,7 @@ impl Report {
             .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
         let fitted = d.fitted_spec(robot.spec());
         let fitted = Robot::new(fitted, format!("{} (fitted)", robot.source_name()));
-        Report::from_json(
+        Report::_from_state(
             py,
             json,
             d.report.summary(&rec.file),
@@ -152,8 +152,17 @@ impl Report {
         )
     }
 
-    /// A report of its JSON text (a JSON object), parsed here once.
-    fn from_json(
+    fn item<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.value.item(py, key)
+    }
+}
+
+#[pymethods]
+impl Report {
+    /// Rebuilds a pickled report (and builds every report): its JSON text, a JSON
+    /// object, parsed here once.
+    #[staticmethod]
+    fn _from_state(
         py: Python<'_>,
         json: String,
         summary: String,
@@ -175,25 +184,6 @@ impl Report {
             fitted,
             recording,
         })
-    }
-
-    fn item<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
-        self.value.item(py, key)
-    }
-}
-
-#[pymethods]
-impl Report {
-    /// Rebuilds a pickled report.
-    #[staticmethod]
-    fn _from_state(
-        py: Python<'_>,
-        json: String,
-        summary: String,
-        fitted: Py<Robot>,
-        recording: String,
-    ) -> PyResult<Self> {
-        Report::from_json(py, json, summary, fitted, recording)
     }
 
     #[allow(clippy::type_complexity)]
