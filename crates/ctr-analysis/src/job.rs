@@ -250,16 +250,7 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
 /// Reads and validates the robot file.
 fn read_robot(input: &Input) -> Result<RobotSpec, Error> {
     let (name, bytes) = read_input(input)?;
-    let text = String::from_utf8(bytes).map_err(|e| {
-        Error::new(
-            Location::file(&name),
-            ErrorKind::Io {
-                action: "read",
-                source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-            },
-        )
-    })?;
-    RobotSpec::from_toml_str(&text, &name)
+    RobotSpec::from_bytes(bytes, &name)
 }
 
 /// The name an input has in messages.

@@ -1,8 +1,10 @@
 //! Command-line options (clap derive), all in one place.
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
 use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::IkOptions;
+use ctr_formats::{ModelKind, ORIENTATION_TOLERANCE_DEG};
 use ctr_hw::emulator::Fault;
 use std::path::PathBuf;
 
@@ -403,8 +405,8 @@ pub struct FkArgs {
     pub output: Option<PathBuf>,
 
     /// Mechanics; overrides `kind` in the robot file's `[model]` (default torsion).
-    #[arg(long, value_enum)]
-    pub model: Option<ModelArg>,
+    #[arg(long, value_parser = model_parser())]
+    pub model: Option<ModelKind>,
 
     /// Rows whose solve does not converge: fail (exit 1, write nothing), skip them, or
     /// mark them in added status,residual_per_mm columns.
@@ -456,7 +458,7 @@ pub struct IkArgs {
     pub tolerance_mm: f64,
 
     /// ... and, for a pose target, this close in orientation, degrees.
-    #[arg(long, value_name = "DEG", default_value_t = 0.0057, value_parser = parse_positive)]
+    #[arg(long, value_name = "DEG", default_value_t = ORIENTATION_TOLERANCE_DEG, value_parser = parse_positive)]
     pub orientation_tolerance_deg: f64,
 
     /// Weight W_E of the position error, per mm^2.
@@ -484,8 +486,8 @@ pub struct IkArgs {
     pub max_iterations: u32,
 
     /// Mechanics; overrides `kind` in the robot file's `[model]` (default torsion).
-    #[arg(long, value_enum)]
-    pub model: Option<ModelArg>,
+    #[arg(long, value_parser = model_parser())]
+    pub model: Option<ModelKind>,
 
     /// Worker threads (default: all cores); the output does not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
@@ -506,13 +508,15 @@ fn parse_non_negative(s: &str) -> Result<f64, String> {
     }
 }
 
-/// `--model`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ModelArg {
-    /// Torsionally rigid tubes.
-    Rigid,
-    /// Torsionally compliant tubes.
-    Torsion,
+/// `--model`: the names of [`ModelKind`] (the one table of them), each with its help.
+fn model_parser() -> impl TypedValueParser<Value = ModelKind> {
+    let values = ModelKind::ALL.map(|k| {
+        PossibleValue::new(k.name()).help(match k {
+            ModelKind::Rigid => "Torsionally rigid tubes",
+            ModelKind::Torsion => "Torsionally compliant tubes",
+        })
+    });
+    PossibleValuesParser::new(values).try_map(|s| s.parse::<ModelKind>())
 }
 
 /// `--on-error`.

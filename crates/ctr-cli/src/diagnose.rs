@@ -5,8 +5,8 @@
 use crate::plots;
 use crate::Failure;
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
-use ctr_formats::{AtomicFile, Recording, RobotSpec};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
+use ctr_formats::{AtomicFile, Recording, RobotSpec, CLEARANCE_FIT_TABLE_SIZES};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -64,7 +64,7 @@ pub struct CalibrateArgs {
     pub holdout: Option<Holdout>,
     /// With --fit clearance: a smooth table of N values per pair over one turn (the
     /// seed's measured "database", written as table_deg) instead of a cosine profile.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(3..=72))]
+    #[arg(long, value_name = "N", value_parser = table_size_parser())]
     pub table: Option<u16>,
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
@@ -80,6 +80,12 @@ pub struct EvaluateArgs {
     /// The recording.
     #[arg(long, value_name = "REC.csv")]
     pub recording: PathBuf,
+}
+
+/// `--table`: a size in [`CLEARANCE_FIT_TABLE_SIZES`].
+fn table_size_parser() -> clap::builder::RangedI64ValueParser<u16> {
+    let (low, high) = CLEARANCE_FIT_TABLE_SIZES.into_inner();
+    clap::value_parser!(u16).range(low as i64..=high as i64)
 }
 
 fn parse_effect(s: &str) -> Result<EffectId, String> {
@@ -143,42 +149,65 @@ fn write_outputs(
     Ok(())
 }
 
-/// `ctr-cli diagnose`.
-pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
-    check_outputs(&[&args.report, &args.out])?;
-    let (spec, rec) = load(&args.robot, &args.recording)?;
-    let options = Options {
-        holdout: args.holdout.unwrap_or_default(),
-        candidates: args.effects.unwrap_or_else(|| EffectId::ALL.to_vec()),
-        threads: threads(args.threads),
-        clearance_table: None,
-    };
+/// The course of `diagnose` and `calibrate`: checks that the report and the fitted file
+/// can be written, reads the robot and the recording, runs `fit` on the robot's model,
+/// writes the outputs (and the plots into `plots`) and prints the summary.
+fn fit_and_write(
+    robot: &Path,
+    recording: &Path,
+    report: &Option<PathBuf>,
+    out: &Option<PathBuf>,
+    plots: Option<&Path>,
+    fit: impl FnOnce(&ModelSpec, &Recording) -> Result<Diagnosis, DiagnoseError>,
+) -> Result<(), Failure> {
+    check_outputs(&[report, out])?;
+    let (spec, rec) = load(robot, recording)?;
     let model = ModelSpec::from_spec(&spec);
-    let d = ctr_diagnosis::diagnose(&model, &rec, &options)
-        .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
-    write_outputs(&spec, &d, &args.report, &args.out)?;
-    if let Some(dir) = &args.plots {
+    let d = fit(&model, &rec).map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
+    write_outputs(&spec, &d, report, out)?;
+    if let Some(dir) = plots {
         plots::write_all(dir, &rec, &model, &d).map_err(Failure::Input)?;
     }
     print!("{}", d.report.summary(&rec.file));
     Ok(())
 }
 
+/// `ctr-cli diagnose`.
+pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
+    let options = Options {
+        holdout: args.holdout.unwrap_or_default(),
+        candidates: args.effects.unwrap_or_else(|| EffectId::ALL.to_vec()),
+        threads: threads(args.threads),
+        clearance_table: None,
+    };
+    let (report, out, plots) = (&args.report, &args.out, args.plots.as_deref());
+    fit_and_write(
+        &args.robot,
+        &args.recording,
+        report,
+        out,
+        plots,
+        |model, rec| ctr_diagnosis::diagnose(model, rec, &options),
+    )
+}
+
 /// `ctr-cli calibrate`.
 pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
-    check_outputs(&[&args.report, &args.out])?;
-    let (spec, rec) = load(&args.robot, &args.recording)?;
     let options = Options {
         holdout: args.holdout.unwrap_or_default(),
         threads: threads(args.threads),
         clearance_table: args.table.map(usize::from),
         ..Options::default()
     };
-    let d = ctr_diagnosis::calibrate(&ModelSpec::from_spec(&spec), &rec, &args.fit, &options)
-        .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
-    write_outputs(&spec, &d, &args.report, &args.out)?;
-    print!("{}", d.report.summary(&rec.file));
-    Ok(())
+    let (report, out) = (&args.report, &args.out);
+    fit_and_write(
+        &args.robot,
+        &args.recording,
+        report,
+        out,
+        None,
+        |model, rec| ctr_diagnosis::calibrate(model, rec, &args.fit, &options),
+    )
 }
 
 /// `ctr-cli evaluate`.

@@ -12,7 +12,7 @@ mod plots;
 mod progress;
 
 use clap::Parser;
-use cli::{Cli, Command, FkArgs, IkArgs, ModelArg, OnErrorArg};
+use cli::{Cli, Command, FkArgs, IkArgs, OnErrorArg};
 use ctr_analysis::ik::IkOptions;
 use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, OnError, Output};
 use ctr_core::Model;
@@ -99,6 +99,18 @@ fn input(path: &Path) -> Input {
     }
 }
 
+/// The robot file's input and the data file's (`--joints`, `--targets`: `flag`); at
+/// most one of them reads standard input.
+fn inputs(robot: &Path, data: &Path, flag: &str) -> Result<(Input, Input), Failure> {
+    let (robot, data) = (input(robot), input(data));
+    if robot == Input::Stdin && data == Input::Stdin {
+        return Err(Failure::Input(format!(
+            "--robot and {flag} cannot both read standard input (-)"
+        )));
+    }
+    Ok((robot, data))
+}
+
 fn output(path: Option<PathBuf>) -> Output {
     match path {
         Some(p) if p != Path::new("-") => Output::Path(p),
@@ -106,26 +118,13 @@ fn output(path: Option<PathBuf>) -> Output {
     }
 }
 
-fn model(m: ModelArg) -> Model {
-    match m {
-        ModelArg::Rigid => Model::Rigid,
-        ModelArg::Torsion => Model::Torsion,
-    }
-}
-
 fn ik(args: IkArgs) -> Result<(), Failure> {
-    let robot = input(&args.robot);
-    let targets = input(&args.targets);
-    if robot == Input::Stdin && targets == Input::Stdin {
-        return Err(Failure::Input(
-            "--robot and --targets cannot both read standard input (-)".into(),
-        ));
-    }
+    let (robot, targets) = inputs(&args.robot, &args.targets, "--targets")?;
     let job = IkJob {
         robot,
         targets,
         output: output(args.output),
-        model: args.model.map(model),
+        model: args.model.map(Model::from),
         options: IkOptions {
             position_weight: args.position_weight,
             orientation_weight: args.orientation_weight,
@@ -181,18 +180,12 @@ fn ik(args: IkArgs) -> Result<(), Failure> {
 }
 
 fn fk(args: FkArgs) -> Result<(), Failure> {
-    let robot = input(&args.robot);
-    let joints = input(&args.joints);
-    if robot == Input::Stdin && joints == Input::Stdin {
-        return Err(Failure::Input(
-            "--robot and --joints cannot both read standard input (-)".into(),
-        ));
-    }
+    let (robot, joints) = inputs(&args.robot, &args.joints, "--joints")?;
     let job = FkJob {
         robot,
         joints,
         output: output(args.output),
-        model: args.model.map(model),
+        model: args.model.map(Model::from),
         on_error: match args.on_error {
             OnErrorArg::Fail => OnError::Fail,
             OnErrorArg::Skip => OnError::Skip,

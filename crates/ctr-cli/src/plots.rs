@@ -10,15 +10,40 @@ use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_diagnosis::Diagnosis;
 use ctr_formats::Recording;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
+use std::error::Error;
+use std::ops::Range;
 use std::path::Path;
+
+/// A plot's chart: x and y in data units.
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Size of each plot, pixels.
 const SIZE: (u32, u32) = (900, 600);
 /// Radius of a measured point, pixels.
 const POINT_PX: i32 = 2;
+/// Radius of a point in the legend, pixels.
+const LEGEND_POINT_PX: i32 = 4;
+/// Width of a model's path, pixels.
+const LINE_PX: u32 = 2;
+/// Length of a path's line in the legend, pixels.
+const LEGEND_LINE_PX: i32 = 20;
+/// Caption font size, pixels.
+const CAPTION_PX: u32 = 22;
+/// Margin around the chart, pixels.
+const MARGIN_PX: u32 = 12;
+/// Height of the x axis' label area, pixels.
+const X_LABELS_PX: u32 = 40;
+/// Width of the y axis' label area, pixels.
+const Y_LABELS_PX: u32 = 60;
+/// Opacity of the legend's background.
+const LEGEND_OPACITY: f64 = 0.8;
+/// Colour of the user model.
 const BEFORE: RGBColor = RGBColor(214, 39, 40);
+/// Colour of the fitted model.
 const AFTER: RGBColor = RGBColor(31, 119, 180);
+/// Colour of the measured tips.
 const MEASURED: RGBColor = RGBColor(60, 60, 60);
 
 fn file_safe(s: &str) -> String {
@@ -116,61 +141,85 @@ fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
-fn residual_plot(
+/// The two models drawn in every plot: their values (per row), colour and label.
+fn models<'a, T>(before: &'a [T], after: &'a [T]) -> [(&'a [T], RGBColor, &'static str); 2] {
+    [
+        (before, BEFORE, "user model"),
+        (after, AFTER, "fitted model"),
+    ]
+}
+
+/// Writes one plot into `path`: the caption, the axes over `x` and `y` with their
+/// descriptions, `draw`'s series, and the legend.
+fn plot(
     path: &Path,
-    feature: &str,
-    x: &[f64],
-    before: &[f64],
-    after: &[f64],
-) -> Result<(), Box<dyn std::error::Error>> {
+    caption: String,
+    (x, x_desc): (Range<f64>, &str),
+    (y, y_desc): (Range<f64>, &str),
+    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), Box<dyn Error>>,
+) -> Result<(), Box<dyn Error>> {
     let root = SVGBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
-    let (x0, x1) = range(x.iter().copied());
-    let (_, y1) = range(before.iter().chain(after).copied());
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("tip error against {feature}"), ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..y1)?;
+        .caption(caption, ("sans-serif", CAPTION_PX))
+        .margin(MARGIN_PX)
+        .x_label_area_size(X_LABELS_PX)
+        .y_label_area_size(Y_LABELS_PX)
+        .build_cartesian_2d(x, y)?;
     chart
         .configure_mesh()
-        .x_desc(feature)
-        .y_desc("tip error, mm")
+        .x_desc(x_desc)
+        .y_desc(y_desc)
         .draw()?;
-    chart
-        .draw_series(
-            x.iter()
-                .zip(before)
-                .map(|(x, y)| Circle::new((*x, *y), POINT_PX, BEFORE.filled())),
-        )?
-        .label("user model")
-        .legend(|(x, y)| Circle::new((x, y), 4, BEFORE.filled()));
-    chart
-        .draw_series(
-            x.iter()
-                .zip(after)
-                .map(|(x, y)| Circle::new((*x, *y), POINT_PX, AFTER.filled())),
-        )?
-        .label("fitted model")
-        .legend(|(x, y)| Circle::new((x, y), 4, AFTER.filled()));
+    draw(&mut chart)?;
     chart
         .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
+        .background_style(WHITE.mix(LEGEND_OPACITY))
         .border_style(BLACK)
         .draw()?;
     root.present()?;
     Ok(())
 }
 
+fn residual_plot(
+    path: &Path,
+    feature: &str,
+    x: &[f64],
+    before: &[f64],
+    after: &[f64],
+) -> Result<(), Box<dyn Error>> {
+    let (x0, x1) = range(x.iter().copied());
+    let (_, y1) = range(before.iter().chain(after).copied());
+    let caption = format!("tip error against {feature}");
+    plot(
+        path,
+        caption,
+        (x0..x1, feature),
+        (0.0..y1, "tip error, mm"),
+        |chart| {
+            for (size, color, label) in models(before, after) {
+                chart
+                    .draw_series(
+                        x.iter()
+                            .zip(size)
+                            .map(|(x, y)| Circle::new((*x, *y), POINT_PX, color.filled())),
+                    )?
+                    .label(label)
+                    .legend(move |(x, y)| Circle::new((x, y), LEGEND_POINT_PX, color.filled()));
+            }
+            Ok(())
+        },
+    )
+}
+
 fn path_plot(
     path: &Path,
     label: &str,
     rec: &Recording,
-    rows: std::ops::Range<usize>,
+    rows: Range<usize>,
     before: &[[f64; 3]],
     after: &[[f64; 3]],
-) -> Result<(), Box<dyn std::error::Error>> {
+) -> Result<(), Box<dyn Error>> {
     // the two axes of W along which the measured path spreads most
     let spread = |a: usize| {
         let (lo, hi) = range(rec.rows[rows.clone()].iter().map(|r| r.p[a]));
@@ -185,51 +234,37 @@ fn path_plot(
         .flat_map(|k| [rec.rows[k].p, before[k], after[k]]);
     let (u0, u1) = range(all.clone().map(|p| p[u]));
     let (v0, v1) = range(all.map(|p| p[v]));
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("run {label}: measured and modelled tip"),
-            ("sans-serif", 22),
-        )
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(u0..u1, v0..v1)?;
-    chart
-        .configure_mesh()
-        .x_desc(format!("{}, mm", name[u]))
-        .y_desc(format!("{}, mm", name[v]))
-        .draw()?;
-    chart
-        .draw_series(rows.clone().map(|k| {
-            Circle::new(
-                (rec.rows[k].p[u], rec.rows[k].p[v]),
-                POINT_PX,
-                MEASURED.filled(),
-            )
-        }))?
-        .label("measured")
-        .legend(|(x, y)| Circle::new((x, y), 4, MEASURED.filled()));
-    chart
-        .draw_series(LineSeries::new(
-            rows.clone().map(|k| (before[k][u], before[k][v])),
-            BEFORE.stroke_width(2),
-        ))?
-        .label("user model")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BEFORE.stroke_width(2)));
-    chart
-        .draw_series(LineSeries::new(
-            rows.map(|k| (after[k][u], after[k][v])),
-            AFTER.stroke_width(2),
-        ))?
-        .label("fitted model")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], AFTER.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    root.present()?;
-    Ok(())
+    let caption = format!("run {label}: measured and modelled tip");
+    let (u_desc, v_desc) = (format!("{}, mm", name[u]), format!("{}, mm", name[v]));
+    plot(
+        path,
+        caption,
+        (u0..u1, &u_desc),
+        (v0..v1, &v_desc),
+        |chart| {
+            chart
+                .draw_series(rows.clone().map(|k| {
+                    Circle::new(
+                        (rec.rows[k].p[u], rec.rows[k].p[v]),
+                        POINT_PX,
+                        MEASURED.filled(),
+                    )
+                }))?
+                .label("measured")
+                .legend(|(x, y)| Circle::new((x, y), LEGEND_POINT_PX, MEASURED.filled()));
+            for (tips, color, label) in models(before, after) {
+                let style = color.stroke_width(LINE_PX);
+                chart
+                    .draw_series(LineSeries::new(
+                        rows.clone().map(|k| (tips[k][u], tips[k][v])),
+                        style,
+                    ))?
+                    .label(label)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + LEGEND_LINE_PX, y)], style)
+                    });
+            }
+            Ok(())
+        },
+    )
 }

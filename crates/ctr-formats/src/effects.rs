@@ -138,6 +138,11 @@ pub struct Clearance {
     pub table_deg: Vec<Vec<f64>>,
 }
 
+/// How many values per pair a fitted clearance table may have: the range of `ctr-cli
+/// calibrate --table` and of `ctr_py.calibrate(table=)` (a file's `table_deg` may hold
+/// from 1 to [`CLEARANCE_TABLE_CAPACITY`]).
+pub const CLEARANCE_FIT_TABLE_SIZES: std::ops::RangeInclusive<usize> = 3..=CLEARANCE_TABLE_CAPACITY;
+
 /// `[model.effects.gravity]`: uniform gravity on the exposed tubes (needs each tube's
 /// `density_kg_m3`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

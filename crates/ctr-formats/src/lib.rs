@@ -171,7 +171,7 @@ pub use actuation::{
 };
 pub use effects::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
-    SensorOffset, Stiffness,
+    SensorOffset, Stiffness, CLEARANCE_FIT_TABLE_SIZES,
 };
 pub use joints::JointTable;
 pub use output::AtomicFile;
@@ -179,10 +179,11 @@ pub use recorded::{RecordedRow, Recording, Run};
 pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{
     LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile, TubeLimits,
+    UnknownModelKind,
 };
 pub use targets::{
     ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow, IkTarget, TargetTable,
-    ORIENTATION_COLUMNS, QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
+    ORIENTATION_COLUMNS, ORIENTATION_TOLERANCE_DEG, QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
 };
 pub use tips::{
     format_float, tip_header, write_header, write_tip_row, Carried, TipWriter, STATUS_COLUMNS,

@@ -112,7 +112,8 @@ pub struct ModelSection {
     pub effects: Effects,
 }
 
-/// The base model of `[model] kind`.
+/// The base model of `[model] kind`, and the one table of its names ([`name`](Self::name),
+/// [`FromStr`](std::str::FromStr); serde's lowercase names are the same, see the test).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ModelKind {
@@ -121,6 +122,56 @@ pub enum ModelKind {
     /// Torsionally compliant tubes.
     #[default]
     Torsion,
+}
+
+impl ModelKind {
+    /// Every kind, in the order messages list them.
+    pub const ALL: [ModelKind; 2] = [ModelKind::Rigid, ModelKind::Torsion];
+
+    /// The kind's name, as `[model] kind`, `ctr-cli --model` and `ctr_py`'s `model=`
+    /// spell it: `rigid`, `torsion`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::Rigid => "rigid",
+            ModelKind::Torsion => "torsion",
+        }
+    }
+}
+
+impl std::fmt::Display for ModelKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A name that is not a [`ModelKind`]'s (exactly, case and spaces included).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownModelKind(pub String);
+
+impl std::fmt::Display for UnknownModelKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<&str> = ModelKind::ALL.iter().map(|k| k.name()).collect();
+        write!(f, "\"{}\" is not a model ({})", self.0, names.join(" or "))
+    }
+}
+
+impl std::error::Error for UnknownModelKind {}
+
+/// ```
+/// use ctr_formats::ModelKind;
+/// assert_eq!("rigid".parse(), Ok(ModelKind::Rigid));
+/// let err = "Rigid".parse::<ModelKind>().unwrap_err();
+/// assert_eq!(err.to_string(), "\"Rigid\" is not a model (rigid or torsion)");
+/// ```
+impl std::str::FromStr for ModelKind {
+    type Err = UnknownModelKind;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        ModelKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| UnknownModelKind(s.to_owned()))
+    }
 }
 
 impl From<ModelKind> for Model {
@@ -377,6 +428,27 @@ impl RobotSpec {
         })
     }
 
+    /// Parses and validates a robot file's bytes, as `ctr-cli fk`/`ik` and `ctr_py` read
+    /// them: UTF-8 (else an error reading `file`, at the first bad byte), then TOML
+    /// ([`from_toml_str`](Self::from_toml_str)); `file` names it in errors.
+    ///
+    /// ```
+    /// let err = ctr_formats::RobotSpec::from_bytes(b"name = \"x\xff\"".to_vec(), "r.toml").unwrap_err();
+    /// assert_eq!(err.to_string(), "r.toml: cannot read: invalid utf-8 sequence of 1 bytes from index 9");
+    /// ```
+    pub fn from_bytes(bytes: Vec<u8>, file: &str) -> Result<RobotSpec, Error> {
+        let text = String::from_utf8(bytes).map_err(|e| {
+            Error::new(
+                Location::file(file),
+                ErrorKind::Io {
+                    action: "read",
+                    source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+                },
+            )
+        })?;
+        RobotSpec::from_toml_str(&text, file)
+    }
+
     /// Reads, parses and validates a robot file; errors name the path as given.
     pub fn from_path(path: &Path) -> Result<RobotSpec, Error> {
         let file = path.display().to_string();
@@ -418,5 +490,24 @@ impl RobotSpec {
     /// The robot file's TOML text.
     pub fn to_toml(&self) -> String {
         self.to_file().to_toml()
+    }
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The file's names (serde's) are the names of `name` and `FromStr`.
+    #[test]
+    fn model_kind_names_are_the_file_names() {
+        for k in ModelKind::ALL {
+            let file: ModelSection = toml::from_str(&format!("kind = \"{}\"", k.name())).unwrap();
+            assert_eq!(file.kind, k);
+            assert_eq!(k.name().parse(), Ok(k));
+            assert_eq!(k.to_string(), k.name());
+        }
+        assert_eq!(
+            " torsion".parse::<ModelKind>(),
+            Err(UnknownModelKind(" torsion".into()))
+        );
     }
 }

@@ -23,6 +23,12 @@ pub const ORIENTATION_COLUMNS: [&str; 4] = ["qw", "qx", "qy", "qz"];
 /// How far from 1 a target quaternion's norm may be (it is then normalised).
 pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 
+/// How close in orientation the tip must come to a pose target to reach it, by default,
+/// degrees: the default of `ctr-cli ik --orientation-tolerance-deg` and of `ctr_py`'s
+/// `Robot.ik(orientation_tolerance_deg=)` (about the IK's own default of 1e-4 rad,
+/// written in the files' unit).
+pub const ORIENTATION_TOLERANCE_DEG: f64 = 0.0057;
+
 /// What the tip should reach, in W.
 ///
 /// ```
@@ -52,6 +58,30 @@ impl IkTarget {
             position: Vector3::from(p),
             orientation: Some(orientation),
         }
+    }
+
+    /// The target of one row of values, as a target file's row is read: `x, y, z` (mm)
+    /// or `x, y, z, qw, qx, qy, qz`, the quaternion of norm 1 within
+    /// [`QUATERNION_NORM_TOLERANCE`] (then normalised). The values are finite.
+    ///
+    /// ```
+    /// use ctr_formats::IkTarget;
+    /// assert!(IkTarget::from_values(&[0.0, 0.0, 90.0, 1.0005, 0.0, 0.0, 0.0]).is_ok());
+    /// let err = IkTarget::from_values(&[0.0, 0.0, 90.0, 2.0, 0.0, 0.0, 0.0]).unwrap_err();
+    /// assert_eq!(err.to_string(), "qw,qx,qy,qz = 2, 0, 0, 0 has norm 2: expected a unit quaternion (norm 1 within 1e-3)");
+    /// ```
+    pub fn from_values(v: &[f64]) -> Result<IkTarget, ErrorKind> {
+        let p = [v[0], v[1], v[2]];
+        if v.len() < 7 {
+            return Ok(IkTarget::position(p));
+        }
+        let q = [v[3], v[4], v[5], v[6]];
+        let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+            return Err(ErrorKind::NotUnitQuaternion { q, norm });
+        }
+        let q = Quaternion::new(q[0], q[1], q[2], q[3]);
+        Ok(IkTarget::pose(p, UnitQuaternion::from_quaternion(q)))
     }
 
     /// The pose of a tip frame.
@@ -121,17 +151,9 @@ impl TargetTable {
             optional: (!position_only).then_some((&orientation[..], "an orientation target")),
         };
         let row_check = |v: &[f64], line: usize| {
-            if v.len() == 7 {
-                let q = [v[3], v[4], v[5], v[6]];
-                let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
-                if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-                    return Err(Error::new(
-                        Location::line(file, line),
-                        ErrorKind::NotUnitQuaternion { q, norm },
-                    ));
-                }
-            }
-            Ok(())
+            IkTarget::from_values(v)
+                .map(drop)
+                .map_err(|kind| Error::new(Location::line(file, line), kind))
         };
         let table = Table::read(data, file, &columns, |_| Ok(()), row_check, threads)?;
         Ok(TargetTable { table })
@@ -150,14 +172,8 @@ impl TargetTable {
 
     /// The target of data row `row` (its quaternion normalised).
     pub fn target(&self, row: usize) -> IkTarget {
-        let v = self.table.values(row);
-        let p = [v[0], v[1], v[2]];
-        if v.len() == 7 {
-            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
-            IkTarget::pose(p, UnitQuaternion::from_quaternion(q))
-        } else {
-            IkTarget::position(p)
-        }
+        IkTarget::from_values(self.table.values(row))
+            .expect("every row passed IkTarget::from_values when the file was read")
     }
 
     /// All targets, in row order.

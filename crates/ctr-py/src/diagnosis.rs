@@ -3,23 +3,24 @@
 //! `Recording`, with the CLI's options (the same strings for `holdout` and the
 //! effects) and messages.
 //!
-//! A `Report` keeps the report as the JSON text `ctr-cli diagnose --report` writes
-//! (`to_dict()` parses it with Python's `json`, so it equals the parsed CLI file
-//! exactly, `NaN` written as `null` included), the CLI's summary text and the fitted
-//! model as a `Robot` (the robot file `--out` writes, without its comment line).
+//! A `Report` keeps the report as the compact JSON text `serde_json` writes of it, that
+//! text parsed once by Python's `json` into a [`Json`] tree (so `to_dict()` and the
+//! attributes equal the parsed CLI file exactly, `NaN` written as `null` included, and
+//! the indented text is `serde_json`'s, as `ctr-cli diagnose --report` writes it), the
+//! CLI's summary text and the fitted model as a `Robot` (the robot file `--out` writes,
+//! without its comment line).
 
 use crate::errors;
+use crate::json::Json;
 use crate::recording::{self, Recording};
 use crate::robot::{threads_arg, Robot, MAX_THREADS};
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{Diagnosis, EffectId, Holdout, Options};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
+use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use std::borrow::Cow;
 use std::path::PathBuf;
-
-/// `calibrate --table`'s range.
-const TABLE_RANGE: std::ops::RangeInclusive<usize> = 3..=72;
 
 /// `holdout=`: `None` (the default split, blocks:4) or the CLI's string.
 fn holdout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Holdout> {
@@ -119,8 +120,10 @@ fn recording_arg<'a>(
 /// A diagnosis's or calibration's report; see `_ctr.pyi`.
 #[pyclass(frozen, module = "ctr_py", name = "Report")]
 pub struct Report {
-    /// The report as `ctr-cli --report` writes it (compact).
+    /// The report's JSON text, compact (as pickled).
     json: String,
+    /// The same, parsed once.
+    value: Json,
     /// The CLI's summary text.
     summary: String,
     /// The fitted model.
@@ -139,25 +142,25 @@ impl Report {
         let json = serde_json::to_string(&d.report)
             .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
         let fitted = d.fitted_spec(robot.spec());
-        Ok(Report {
+        let fitted = Robot::new(fitted, format!("{} (fitted)", robot.source_name()));
+        Report::_from_state(
+            py,
             json,
-            summary: d.report.summary(&rec.file),
-            fitted: Py::new(
-                py,
-                Robot::new(fitted, format!("{} (fitted)", robot.source_name())),
-            )?,
-            recording: rec.file.clone(),
-        })
+            d.report.summary(&rec.file),
+            Py::new(py, fitted)?,
+            rec.file.clone(),
+        )
     }
 
     fn item<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
-        self.to_dict(py)?.get_item(key)
+        self.value.item(py, key)
     }
 }
 
 #[pymethods]
 impl Report {
-    /// Rebuilds a pickled report.
+    /// Rebuilds a pickled report (and builds every report): its JSON text, a JSON
+    /// object, parsed here once.
     #[staticmethod]
     fn _from_state(
         py: Python<'_>,
@@ -166,17 +169,17 @@ impl Report {
         fitted: Py<Robot>,
         recording: String,
     ) -> PyResult<Self> {
-        let ok = py
+        let parsed = py
             .import("json")?
             .call_method1("loads", (&json,))
-            .is_ok_and(|v| v.is_instance_of::<PyDict>());
-        if !ok {
-            return Err(errors::input(
-                "Report state: the report is not a JSON object".into(),
-            ));
-        }
+            .ok()
+            .filter(|v| v.is_instance_of::<PyDict>())
+            .ok_or_else(|| errors::input("Report state: the report is not a JSON object".into()))?;
+        let value =
+            Json::from_py(&parsed).map_err(|m| errors::input(format!("Report state: {m}")))?;
         Ok(Report {
             json,
+            value,
             summary,
             fitted,
             recording,
@@ -217,19 +220,22 @@ impl Report {
         ))
     }
 
-    /// The report as plain dicts, lists, str, int and float (`None` for `null`).
+    /// The report as plain dicts, lists, str, int and float (`None` for `null`), new on
+    /// every call.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?.call_method1("loads", (&self.json,))
+        self.value.to_py(py)
     }
 
-    /// The report's JSON text, as `ctr-cli --report` writes it (indented, with a final
-    /// newline) or compact.
+    /// The report's JSON text, as `ctr-cli --report` writes it (`serde_json`'s
+    /// two-space indents, a final newline) or compact.
     #[pyo3(signature = (indent = true))]
-    fn to_json(&self, indent: bool) -> String {
+    fn to_json(&self, indent: bool) -> PyResult<String> {
         if indent {
-            indent_json(&self.json) + "\n"
+            serde_json::to_string_pretty(&self.value)
+                .map(|text| text + "\n")
+                .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))
         } else {
-            self.json.clone()
+            Ok(self.json.clone())
         }
     }
 
@@ -315,62 +321,22 @@ impl Report {
     }
 }
 
-/// Indents compact JSON text by two spaces per level, as `serde_json::to_string_pretty`
-/// does, without re-printing any number.
-fn indent_json(compact: &str) -> String {
-    let mut out = String::with_capacity(compact.len() * 2);
-    let mut depth = 0usize;
-    let mut in_string = false;
-    let mut escaped = false;
-    let mut chars = compact.chars().peekable();
-    let newline = |out: &mut String, depth: usize| {
-        out.push('\n');
-        for _ in 0..depth {
-            out.push_str("  ");
-        }
-    };
-    while let Some(c) = chars.next() {
-        if in_string {
-            out.push(c);
-            if escaped {
-                escaped = false;
-            } else if c == '\\' {
-                escaped = true;
-            } else if c == '"' {
-                in_string = false;
-            }
-            continue;
-        }
-        match c {
-            '"' => {
-                in_string = true;
-                out.push(c);
-            }
-            '{' | '[' => {
-                out.push(c);
-                let close = if c == '{' { '}' } else { ']' };
-                if chars.peek() == Some(&close) {
-                    out.push(close);
-                    chars.next();
-                } else {
-                    depth += 1;
-                    newline(&mut out, depth);
-                }
-            }
-            '}' | ']' => {
-                depth = depth.saturating_sub(1);
-                newline(&mut out, depth);
-                out.push(c);
-            }
-            ',' => {
-                out.push(c);
-                newline(&mut out, depth);
-            }
-            ':' => out.push_str(": "),
-            _ => out.push(c),
-        }
-    }
-    out
+/// Runs `fit` (a diagnosis or calibration) on the robot's model and the recording with
+/// the GIL released: the report, or the error located at the recording as `ctr-cli`
+/// prints it.
+fn fit_report(
+    py: Python<'_>,
+    robot: &Robot,
+    recording: &Bound<'_, PyAny>,
+    fit: impl FnOnce(&ModelSpec, &ctr_formats::Recording) -> Result<Diagnosis, DiagnoseError> + Send,
+) -> PyResult<Report> {
+    let rec = recording_arg(py, recording, robot)?;
+    let model = ModelSpec::from_spec(robot.spec());
+    let rec_ref: &ctr_formats::Recording = &rec;
+    let d = py
+        .detach(|| fit(&model, rec_ref))
+        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
+    Report::new(py, &d, robot, &rec)
 }
 
 /// Diagnoses a robot's model against a recording; see `_ctr.pyi`.
@@ -394,13 +360,9 @@ pub fn diagnose(
         threads: threads_opt(threads)?,
         clearance_table: None,
     };
-    let rec = recording_arg(py, recording, robot)?;
-    let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &ctr_formats::Recording = &rec;
-    let d = py
-        .detach(|| ctr_diagnosis::diagnose(&model, rec_ref, &options))
-        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
-    Report::new(py, &d, robot, &rec)
+    fit_report(py, robot, recording, |model, rec| {
+        ctr_diagnosis::diagnose(model, rec, &options)
+    })
 }
 
 /// Fits the named effects' parameters; see `_ctr.pyi`.
@@ -426,12 +388,12 @@ pub fn calibrate(
     }
     let table = match table {
         None => None,
-        Some(k) if k >= 0 && TABLE_RANGE.contains(&(k as usize)) => Some(k as usize),
+        Some(k) if k >= 0 && CLEARANCE_FIT_TABLE_SIZES.contains(&(k as usize)) => Some(k as usize),
         Some(k) => {
             return Err(errors::input(format!(
                 "table: {k} is not in {}..={}",
-                TABLE_RANGE.start(),
-                TABLE_RANGE.end()
+                CLEARANCE_FIT_TABLE_SIZES.start(),
+                CLEARANCE_FIT_TABLE_SIZES.end()
             )))
         }
     };
@@ -441,13 +403,9 @@ pub fn calibrate(
         clearance_table: table,
         ..Options::default()
     };
-    let rec = recording_arg(py, recording, robot)?;
-    let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &ctr_formats::Recording = &rec;
-    let d = py
-        .detach(|| ctr_diagnosis::calibrate(&model, rec_ref, &fit, &options))
-        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
-    Report::new(py, &d, robot, &rec)
+    fit_report(py, robot, recording, |model, rec| {
+        ctr_diagnosis::calibrate(model, rec, &fit, &options)
+    })
 }
 
 /// Mean and largest tip error per run for several models; see `_ctr.pyi`.
@@ -522,19 +480,6 @@ pub fn evaluate<'py>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn indent_equals_serde_pretty() {
-        let v = serde_json::json!({
-            "a": [1.5, {"b": "x,\"y\":[z]", "c": []}, {}],
-            "d": {"e": null, "f": -0.1e-300, "g": [[1], [2, 3]]},
-        });
-        let compact = serde_json::to_string(&v).unwrap();
-        assert_eq!(
-            indent_json(&compact),
-            serde_json::to_string_pretty(&v).unwrap()
-        );
-    }
 
     #[test]
     fn holdout_and_effect_strings_as_the_cli() {

@@ -22,6 +22,7 @@ use pyo3::prelude::*;
 mod arrays;
 mod diagnosis;
 mod errors;
+mod json;
 mod recording;
 mod robot;
 

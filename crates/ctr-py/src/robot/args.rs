@@ -7,16 +7,11 @@ use crate::arrays::{self, Rows};
 use crate::errors::{self, Fail};
 use ctr_analysis::model::RowModel;
 use ctr_core::Model;
-use ctr_formats::{Error, ErrorKind, IkTarget};
-use nalgebra::{Quaternion, UnitQuaternion};
+use ctr_formats::{Error, ErrorKind, IkTarget, ModelKind, ORIENTATION_COLUMNS, TARGET_COLUMNS};
 use pyo3::prelude::*;
 
-/// Names of the target columns, as in a targets file.
-const TARGET_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"];
 /// Most worker threads a call may ask for (each is an OS thread).
 pub(crate) const MAX_THREADS: usize = 1024;
-/// How far from 1 a target quaternion's norm may be (it is then normalised).
-const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 
 /// `threads` checked: 0 (all cores) to [`MAX_THREADS`].
 pub(crate) fn threads_arg(threads: usize) -> PyResult<usize> {
@@ -29,15 +24,14 @@ pub(crate) fn threads_arg(threads: usize) -> PyResult<usize> {
 }
 
 impl Robot {
-    /// `model` or the file's.
+    /// `model` (a [`ModelKind`] name) or the file's.
     pub(super) fn model_arg(&self, model: Option<&str>) -> PyResult<Model> {
         match model {
             None => Ok(self.spec.model),
-            Some("rigid") => Ok(Model::Rigid),
-            Some("torsion") => Ok(Model::Torsion),
-            Some(other) => Err(errors::input(format!(
-                "model: \"{other}\" is not a model (rigid or torsion)"
-            ))),
+            Some(name) => name
+                .parse::<ModelKind>()
+                .map(Model::from)
+                .map_err(|e| errors::input(format!("model: {e}"))),
         }
     }
 
@@ -85,12 +79,7 @@ impl Robot {
         rows: &Rows,
     ) -> PyResult<Option<Vec<f64>>> {
         let Some(obj) = t_s else {
-            if fkm.needs_time() {
-                let effect = if fkm.needs_times().is_some() {
-                    "latency"
-                } else {
-                    "friction"
-                };
+            if let Some(effect) = fkm.time_effect() {
                 return Err(errors::input(format!(
                     "{}: model.effects.{effect} acts along time: pass t_s= (the rows' times, \
                      seconds, non-decreasing; the rows are then one run in order)",
@@ -138,34 +127,17 @@ impl Robot {
                 let t = rows.row(i);
                 let at = || errors::at("targets", i, rows.batched);
                 if let Some(k) = t.iter().position(|v| !v.is_finite()) {
+                    let column = TARGET_COLUMNS.iter().chain(&ORIENTATION_COLUMNS).nth(k);
                     return Err(Fail::Ctr(Error::new(
                         at(),
                         ErrorKind::NotFinite {
-                            column: TARGET_COLUMNS[k].to_owned(),
+                            column: column.map_or_else(String::new, |c| (*c).to_owned()),
                             found: arrays::nonfinite_text(t[k]),
                         },
                     )));
                 }
-                let position = [t[0], t[1], t[2]];
-                if t.len() == 3 {
-                    return Ok(IkTarget::position(position));
-                }
-                // as `ctr-cli ik` reads a targets file: a unit quaternion within 1e-3,
-                // then normalised
-                let q = [t[3], t[4], t[5], t[6]];
-                let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
-                if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-                    return Err(Fail::Input(format!(
-                        "{}: qw,qx,qy,qz = {}, {}, {}, {} has norm {norm}: expected a unit quaternion (norm 1 within 1e-3)",
-                        at(),
-                        q[0],
-                        q[1],
-                        q[2],
-                        q[3]
-                    )));
-                }
-                let q = Quaternion::new(q[0], q[1], q[2], q[3]);
-                Ok(IkTarget::pose(position, UnitQuaternion::from_quaternion(q)))
+                // as `ctr-cli ik` reads a targets file's row
+                IkTarget::from_values(t).map_err(|kind| Fail::Ctr(Error::new(at(), kind)))
             })
             .collect()
     }

@@ -16,17 +16,13 @@ use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::{Ik, IkError, IkOptions};
 use ctr_analysis::model::{ModelError, ModelSpec, RowModel};
 use ctr_core::Model;
-use ctr_formats::RobotSpec;
-use ctr_formats::{Error, ErrorKind, Location};
+use ctr_formats::{Error, ErrorKind, Location, ModelKind, RobotSpec, ORIENTATION_TOLERANCE_DEG};
 use pyo3::prelude::*;
 use pyo3::types::{PyTuple, PyType};
 use pyo3::IntoPyObjectExt;
 use solve::Inverse;
 use std::path::PathBuf;
 use std::sync::OnceLock;
-
-/// `ctr-cli ik --orientation-tolerance-deg`'s default.
-const CLI_ORIENTATION_TOLERANCE_DEG: f64 = 0.0057;
 
 /// A robot read from a robot TOML file (tubes, `[model]`, `[limits]`, `[actuation]`).
 #[pyclass(frozen, module = "ctr_py", name = "Robot")]
@@ -42,7 +38,7 @@ pub struct Robot {
 /// The IK settings `ctr-cli ik` uses by default.
 pub(super) fn cli_ik_options() -> IkOptions {
     IkOptions {
-        orientation_tolerance_rad: CLI_ORIENTATION_TOLERANCE_DEG.to_radians(),
+        orientation_tolerance_rad: ORIENTATION_TOLERANCE_DEG.to_radians(),
         ..IkOptions::default()
     }
 }
@@ -51,13 +47,6 @@ fn model_index(model: Model) -> usize {
     match model {
         Model::Rigid => 0,
         Model::Torsion => 1,
-    }
-}
-
-fn model_name(model: Model) -> &'static str {
-    match model {
-        Model::Rigid => "rigid",
-        Model::Torsion => "torsion",
     }
 }
 
@@ -165,7 +154,7 @@ impl Robot {
     fn from_toml(_cls: &Bound<'_, PyType>, py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let name = path.display().to_string();
         py.detach(|| {
-            // as `ctr-cli` reads it: bytes, then UTF-8, then TOML
+            // as `ctr-cli fk` reads it: bytes, then UTF-8 and TOML
             let bytes = std::fs::read(&path).map_err(|source| {
                 Error::new(
                     Location::file(&name),
@@ -175,16 +164,7 @@ impl Robot {
                     },
                 )
             })?;
-            let text = String::from_utf8(bytes).map_err(|e| {
-                Error::new(
-                    Location::file(&name),
-                    ErrorKind::Io {
-                        action: "read",
-                        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-                    },
-                )
-            })?;
-            RobotSpec::from_toml_str(&text, &name)
+            RobotSpec::from_bytes(bytes, &name)
         })
         .map(|spec| Robot::new(spec, name.clone()))
         .map_err(|e| errors::to_py(&e))
@@ -219,7 +199,7 @@ impl Robot {
     /// The file's `[model] kind`: `"rigid"` or `"torsion"`.
     #[getter]
     fn model(&self) -> &'static str {
-        model_name(self.spec.model)
+        ModelKind::from(self.spec.model).name()
     }
 
     /// Joint names in file order: `s1_mm, theta1_deg, ...`.
@@ -318,12 +298,7 @@ impl Robot {
     ) -> PyResult<Bound<'py, PyAny>> {
         let model = self.model_arg(model)?;
         let fkm = self.row_model(model)?;
-        if fkm.needs_time() {
-            let effect = if fkm.needs_times().is_some() {
-                "latency"
-            } else {
-                "friction"
-            };
+        if let Some(effect) = fkm.time_effect() {
             return Err(errors::input(format!(
                 "{}: model.effects.{effect}: backbone solves one joint vector, and this time \
                  effect makes the shape depend on the rows before it; use fk with t_s for the \
@@ -374,7 +349,7 @@ impl Robot {
         cold = false,
         chunk_rows = IK_CHUNK_ROWS,
         tolerance_mm = IkOptions::default().tolerance_mm,
-        orientation_tolerance_deg = CLI_ORIENTATION_TOLERANCE_DEG,
+        orientation_tolerance_deg = ORIENTATION_TOLERANCE_DEG,
         position_weight = IkOptions::default().position_weight,
         orientation_weight = IkOptions::default().orientation_weight,
         damping_feed = IkOptions::default().damping_feed,
