@@ -101,28 +101,19 @@ fn bench_robot<const N: usize>(c: &mut Criterion, name: &str, increments: [(f64,
     });
     let mut cold = Solver::default();
     let mut j = 0;
-    group.bench_function("torsion/cold", |b| {
-        b.iter(|| {
-            j = (j + 1) % scattered.len();
-            black_box(
-                cold.solve(&robot, Request::new(scattered[j], Model::Torsion).cold())
-                    .unwrap()
-                    .tip
-                    .position,
-            )
-        })
-    });
-    group.bench_function("rigid", |b| {
-        b.iter(|| {
-            j = (j + 1) % scattered.len();
-            black_box(
-                cold.solve(&robot, Request::new(scattered[j], Model::Rigid).cold())
-                    .unwrap()
-                    .tip
-                    .position,
-            )
-        })
-    });
+    for (bench, model) in [("torsion/cold", Model::Torsion), ("rigid", Model::Rigid)] {
+        group.bench_function(bench, |b| {
+            b.iter(|| {
+                j = (j + 1) % scattered.len();
+                black_box(
+                    cold.solve(&robot, Request::new(scattered[j], model).cold())
+                        .unwrap()
+                        .tip
+                        .position,
+                )
+            })
+        });
+    }
     let gravity = ctr_core::Loads {
         gravity: Some(ctr_core::Gravity::new([-1.0, 0.0, 0.0], 9.81)),
         ..Default::default()

@@ -5,6 +5,7 @@ import json
 import os
 import shutil
 import subprocess
+import threading
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,28 @@ ROBOTS = sorted((REPO / "data" / "robots").glob("*.toml"))
 # `shared/data` beside the repository, as the Rust tests find it (CTR_SHARED_DATA
 # overrides): the shared robots and the recordings with their truth files
 SHARED = Path(os.environ.get("CTR_SHARED_DATA") or REPO.parent / "shared" / "data")
+
+
+def spin_while(work):
+    """Runs `work()` on another thread and counts the turns of a busy loop on this one
+    until it returns: `(its result, the count)`. A call that holds the GIL throughout
+    leaves the loop barely any turns."""
+    done = threading.Event()
+    result = {}
+
+    def run():
+        try:
+            result["value"] = work()
+        finally:
+            done.set()
+
+    counted = 0
+    t = threading.Thread(target=run)
+    t.start()
+    while not done.is_set():
+        counted += 1
+    t.join()
+    return result["value"], counted
 
 
 @pytest.fixture(scope="session")

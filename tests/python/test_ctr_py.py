@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import ctr_py
-from conftest import REPO, ROBOTS
+from conftest import REPO, ROBOTS, spin_while
 
 BAD = REPO / "tests" / "cli" / "bad"
 SNAP = REPO / "tests" / "cli" / "snap"
@@ -432,20 +432,8 @@ def test_pickle_through_multiprocessing(robot):
 
 def test_batch_fk_releases_the_gil(robot):
     q = np.tile(joints_for(robot, 64), (2000, 1))
-    done = threading.Event()
-    result = {}
-
-    def work():
-        result["p"] = robot.fk(q)[0]
-        done.set()
-
-    counted = 0
-    t = threading.Thread(target=work)
-    t.start()
-    while not done.is_set():
-        counted += 1
-    t.join()
-    assert result["p"].shape == (128000, 3)
+    p, counted = spin_while(lambda: robot.fk(q)[0])
+    assert p.shape == (128000, 3)
     # with the GIL held for the whole call this loop would barely run
     assert counted > 10_000
 
@@ -608,29 +596,7 @@ def test_package_metadata():
 
 LIU = REPO / "data" / "robots" / "liu2023.toml"
 
-STATIC_EFFECTS = """
-[model.effects.joint_offset]
-feed_mm = [0.4, -0.3]
-rotation_deg = [2.0, -3.0]
-
-[model.effects.clearance]
-max_deflection_deg = [2.5]
-peak_deg = [205.0]
-
-[model.effects.stiffness]
-factor = [1.1, 0.9]
-
-[model.effects.precurvature]
-radius_factor = [1.05, 0.95]
-
-[model.effects.sensor_offset]
-offset_mm = [0.5, -0.3, -2.0]
-
-[model.effects.registration]
-translation_mm = [3.0, -2.0, 5.0]
-rotation_axis = [0.3, 0.9, 0.3]
-rotation_deg = 2.0
-"""
+STATIC_EFFECTS = (REPO / "tests" / "fixtures" / "static-effects.toml").read_text()
 
 GRAVITY_EFFECTS = """
 [model.effects.gravity]

@@ -8,14 +8,13 @@ import json
 import pickle
 import re
 import subprocess
-import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import ctr_py
-from conftest import REPO, SHARED
+from conftest import REPO, SHARED, spin_while
 
 LIU = SHARED / "robots" / "liu2023.toml"
 CLEARANCE = SHARED / "recordings" / "dev-clearance.csv"
@@ -311,20 +310,10 @@ def test_diagnose_options_equal_the_cli(cli, tmp_path, liu, rec, report):
 
 
 def test_diagnosis_releases_the_gil(liu, rec):
-    done = threading.Event()
-    result = {}
-
-    def work():
-        result["r"] = ctr_py.diagnose(liu, rec, effects=["clearance", "registration"])
-        done.set()
-
-    counted = 0
-    t = threading.Thread(target=work)
-    t.start()
-    while not done.is_set():
-        counted += 1
-    t.join()
-    assert result["r"].effects == ["clearance"]
+    r, counted = spin_while(
+        lambda: ctr_py.diagnose(liu, rec, effects=["clearance", "registration"])
+    )
+    assert r.effects == ["clearance"]
     assert counted > 10_000
 
 

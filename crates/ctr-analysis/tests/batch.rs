@@ -3,12 +3,15 @@
 use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
 use ctr_analysis::job::{run_fk, FkJob, Input, OnError, Output};
 use ctr_analysis::model::{ModelSpec, RowModel};
-use ctr_core::{Joints, Model, Request, Robot, Solver, Status};
+use ctr_core::{Model, Status};
 use ctr_formats::parallel::Progress;
 use ctr_formats::RobotSpec;
-use ctr_formats::{canonical_quaternion, AnyRobot, ErrorKind, FkResult};
+use ctr_formats::{AnyRobot, ErrorKind, FkResult};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+mod common;
+use common::core_rows;
 
 fn data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -48,38 +51,6 @@ fn joint_rows(n: usize, rows: usize, lo: f64, hi: f64) -> Vec<f64> {
         }
     }
     out
-}
-
-/// Row-by-row core solves with a fresh `Solver` at every chunk boundary.
-fn core_rows<const N: usize>(
-    robot: &Robot<f64, N>,
-    joints: &[f64],
-    model: Model,
-    chunk: usize,
-) -> Vec<FkResult> {
-    let mut solver = Solver::<f64, N>::default();
-    joints
-        .chunks(2 * N)
-        .enumerate()
-        .map(|(i, q)| {
-            if i % chunk == 0 {
-                solver = Solver::default();
-            }
-            let q = Joints::from_mm_deg(
-                core::array::from_fn(|k| q[2 * k]),
-                core::array::from_fn(|k| q[2 * k + 1]),
-            );
-            let sol = solver.solve(robot, Request::new(q, model)).unwrap();
-            let p = sol.tip.position;
-            FkResult {
-                position: [p.x, p.y, p.z],
-                quaternion: canonical_quaternion(&sol.tip.orientation()),
-                status: sol.status,
-                residual_per_mm: sol.residual_per_mm,
-                iterations: sol.iterations,
-            }
-        })
-        .collect()
 }
 
 /// The row model of `robot` under `model`, without effects.

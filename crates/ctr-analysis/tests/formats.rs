@@ -19,28 +19,8 @@ fn liu2023() -> RobotSpec {
     RobotSpec::from_path(&data("robots/liu2023.toml")).unwrap()
 }
 
-const BASE: &str = r#"name = "base"
-
-[[tube]]
-name = "outer"
-outer_diameter_mm = 6.8
-inner_diameter_mm = 4.9
-length_mm = 124.0
-curved_length_mm = 74.0
-curvature_radius_mm = -97.0
-youngs_modulus_mpa = 150.0
-poisson_ratio = 0.41
-
-[[tube]]
-name = "inner"
-outer_diameter_mm = 4.5
-inner_diameter_mm = 3.3
-length_mm = 174.0
-curved_length_mm = 114.0
-curvature_radius_mm = 98.5
-youngs_modulus_mpa = 300.0
-poisson_ratio = 0.41
-"#;
+/// A two-tube robot file with named tubes (the error tests name its lines and columns).
+const BASE: &str = include_str!("fixtures/base-robot.toml");
 
 fn err(text: &str) -> String {
     RobotSpec::from_toml_str(text, "robot.toml")

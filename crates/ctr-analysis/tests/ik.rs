@@ -12,6 +12,9 @@ use ctr_formats::{RobotSpec, TubeLimits};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+mod common;
+use common::{dist, stable_increments, Rng};
+
 /// Random reachable targets per robot: the 1,000 in release builds.
 const ROUND_TRIPS: usize = if cfg!(debug_assertions) { 150 } else { 1000 };
 
@@ -30,17 +33,6 @@ fn data(rel: &str) -> PathBuf {
         .join(rel)
 }
 
-/// The stable increment ranges of `shared/data/manifest.json` (`valid_ranges`); all
-/// robots take every rotation in [-180, 180] degrees.
-fn stable_increments(name: &str) -> Vec<[f64; 2]> {
-    match name {
-        "liu2023" => vec![[20.0, 70.0], [25.0, 95.0]],
-        "nitinol2" => vec![[10.0, 60.0], [10.0, 80.0]],
-        "nitinol3" => vec![[10.0, 50.0]; 3],
-        _ => panic!("unknown robot {name}"),
-    }
-}
-
 /// The robot file with the manifest's stable ranges as `[limits]`.
 fn spec(name: &str) -> RobotSpec {
     let mut spec = RobotSpec::from_path(&data(&format!("robots/{name}.toml"))).unwrap();
@@ -55,17 +47,6 @@ fn spec(name: &str) -> RobotSpec {
             .collect(),
     );
     spec
-}
-
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 /// Random joints in file units (mm, degrees) inside the stable ranges.
@@ -106,10 +87,6 @@ fn fk_position(spec: &RobotSpec, joints_file: &[f64]) -> [f64; 3] {
         .fk(joints_file)
         .unwrap()
         .position
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Solves `target`, checking every iterate against the limits.

@@ -7,27 +7,12 @@ use ctr_formats::{
     Clearance, Effects, Friction, Gravity, Latency, Recording, Registration, RobotSpec,
 };
 use serde_json::Value;
-use std::path::PathBuf;
 
-fn shared() -> PathBuf {
-    std::env::var_os("CTR_SHARED_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-        PathBuf::from,
-    )
-}
+mod common;
 
+/// A shared recording, the model of the robot its truth file names, and the truth file.
 fn load(id: &str) -> (ModelSpec, Recording, Value) {
-    let dir = shared().join("recordings");
-    let truth: Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.join(format!("{id}.truth.json"))).unwrap(),
-    )
-    .unwrap();
-    let robot = truth["robot_file"]
-        .as_str()
-        .unwrap()
-        .trim_start_matches("shared/data/");
-    let spec = RobotSpec::from_path(&shared().join(robot)).unwrap();
-    let rec = Recording::from_path(&dir.join(format!("{id}.csv")), spec.robot.n_tubes()).unwrap();
+    let (spec, rec, truth) = common::recording(id);
     (ModelSpec::from_spec(&spec), rec, truth)
 }
 

@@ -4,13 +4,9 @@ use ctr_analysis::model::ModelSpec;
 use ctr_analysis::timeline::{actual_joints, TimeEffects};
 use ctr_core::Model;
 use ctr_formats::RobotSpec;
-use std::path::PathBuf;
 
-fn shared() -> PathBuf {
-    std::env::var("CTR_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|_| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"))
-}
+mod common;
+use common::shared;
 
 /// One run: times, commanded joints (file order), measured tips.
 type Run = (Vec<f64>, Vec<Vec<f64>>, Vec<[f64; 3]>);

@@ -5,6 +5,11 @@
 //! not reached under `ik --fail-unreachable`, or a rig, bus or port failure, 2 bad input
 //! or usage. Every error is one line on stderr.
 
+// The options' doc comments are their `--help` text, which names TOML sections the
+// user writes (`[actuation]`, `[limits]`) and fault syntax (`[@GOALS][xCOUNT]`):
+// they are not links, and rewriting them for rustdoc would change the help.
+#![allow(rustdoc::broken_intra_doc_links)]
+
 mod cli;
 mod diagnose;
 mod hw;

@@ -4,15 +4,12 @@
 use ctr_analysis::batch::WARM_CHUNK_ROWS;
 use ctr_core::{Joints, Model, Request, Robot, Solver, TubeParams};
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Stdio;
 
 mod common;
-use common::{cli, repo, run, run_stdin, stderr};
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::analysis::core_rows;
+use common::{arg, cli, fk_args, repo, run, run_stdin, stderr, stdin_path};
 
 /// Every case under `tests/cli/bad/`: `robot.toml`, `joints.csv` (`targets.csv` for the
 /// `ik-*` cases), `expected.txt` (a stable part of the one-line message), optionally
@@ -63,7 +60,7 @@ fn bad_input_corpus_exits_2_with_one_line() {
             None => command
                 .iter()
                 .map(|s| s.to_string())
-                .chain([path_str(&out).to_owned()])
+                .chain([arg(&out).to_owned()])
                 .chain(lines("extra-args").unwrap_or_default())
                 .collect(),
         };
@@ -129,30 +126,15 @@ fn params(spec_toml: &str) -> Vec<TubeParams<f64>> {
 }
 
 /// The core, called row by row with a fresh solver every `WARM_CHUNK_ROWS` rows, for a
-/// two-tube robot.
+/// two-tube robot: positions and quaternions.
 fn core_tips(robot: &str, joints: &[[f64; 4]], model: Model) -> Vec<[f64; 7]> {
     let p: [TubeParams<f64>; 2] = params(robot).try_into().unwrap();
     let robot = Robot::new(p).unwrap();
-    let mut solver = Solver::<f64, 2>::default();
-    joints
+    core_rows(&robot, joints.as_flattened(), model, WARM_CHUNK_ROWS)
         .iter()
-        .enumerate()
-        .map(|(i, q)| {
-            if i % WARM_CHUNK_ROWS == 0 {
-                solver = Solver::default();
-            }
-            let q = Joints::from_mm_deg(
-                core::array::from_fn(|k| q[2 * k]),
-                core::array::from_fn(|k| q[2 * k + 1]),
-            );
-            let sol = solver.solve(&robot, Request::new(q, model)).unwrap();
-            let quat = sol.tip.orientation();
-            let mut w = [quat.w, quat.i, quat.j, quat.k];
-            if w[0] < 0.0 {
-                w = w.map(|c| -c);
-            }
-            let p = sol.tip.position;
-            [p.x, p.y, p.z, w[0], w[1], w[2], w[3]]
+        .map(|r| {
+            let ([x, y, z], [w, i, j, k]) = (r.position, r.quaternion);
+            [x, y, z, w, i, j, k]
         })
         .collect()
 }
@@ -202,26 +184,11 @@ fn model_kind_in_the_robot_file_is_used_and_overridden() {
     let robot = dir.path().join("rigid.toml");
     let text = std::fs::read_to_string(repo("data/robots/liu2023.toml")).unwrap();
     std::fs::write(&robot, format!("{text}\n[model]\nkind = \"rigid\"\n")).unwrap();
-    let joints = path_str(&repo("data/examples/liu2023-joints.csv")).to_owned();
-    let from_file = run(&["fk", "--robot", path_str(&robot), "--joints", &joints]);
-    let rigid = run(&[
-        "fk",
-        "--robot",
-        path_str(&repo("data/robots/liu2023.toml")),
-        "--joints",
-        &joints,
-        "--model",
-        "rigid",
-    ]);
-    let torsion = run(&[
-        "fk",
-        "--robot",
-        path_str(&robot),
-        "--joints",
-        &joints,
-        "--model",
-        "torsion",
-    ]);
+    let joints = repo("data/examples/liu2023-joints.csv");
+    let liu2023 = repo("data/robots/liu2023.toml");
+    let from_file = run(&fk_args(&robot, &joints, &[]));
+    let rigid = run(&fk_args(&liu2023, &joints, &["--model", "rigid"]));
+    let torsion = run(&fk_args(&robot, &joints, &["--model", "torsion"]));
     assert_eq!(from_file.stdout, rigid.stdout);
     assert_ne!(from_file.stdout, torsion.stdout);
 }
@@ -244,16 +211,8 @@ fn three_tube_robot_matches_the_core_too() {
         csv_text += "\n";
         joints.push(row);
     }
-    let o = run_stdin(
-        &[
-            "fk",
-            "--robot",
-            path_str(&repo("data/robots/nitinol3.toml")),
-            "--joints",
-            "-",
-        ],
-        csv_text.as_bytes(),
-    );
+    let robot = repo("data/robots/nitinol3.toml");
+    let o = run_stdin(&fk_args(&robot, stdin_path(), &[]), csv_text.as_bytes());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let got = tips(std::str::from_utf8(&o.stdout).unwrap());
     let p: [TubeParams<f64>; 3] = params("data/robots/nitinol3.toml").try_into().unwrap();
@@ -284,16 +243,9 @@ fn extra_columns_are_carried_through_untouched() {
                  \"a, quoted\", 30.0 ,\"say \"\"hi\"\"\",0,80,0,0.5\n\
                  ünïcödé,40,,90,100,-45,1e3\n\
                  plain,45,x,-0.0,105,180,\n";
+    let robot = repo("data/robots/liu2023.toml");
     let o = run_stdin(
-        &[
-            "fk",
-            "--robot",
-            path_str(&repo("data/robots/liu2023.toml")),
-            "--joints",
-            "-",
-            "-o",
-            "-",
-        ],
+        &fk_args(&robot, stdin_path(), &["-o", "-"]),
         input.as_bytes(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -331,14 +283,12 @@ fn output_does_not_depend_on_thread_count() {
             (t * 11.1) % 360.0 - 180.0
         );
     }
-    let robot = path_str(&repo("data/robots/liu2023.toml")).to_owned();
+    let robot = repo("data/robots/liu2023.toml");
     let outputs: Vec<Vec<u8>> = ["1", "2", "3", "16"]
         .iter()
         .map(|n| {
-            let o = run_stdin(
-                &["fk", "--robot", &robot, "--joints", "-", "--threads", n],
-                input.as_bytes(),
-            );
+            let args = fk_args(&robot, stdin_path(), &["--threads", n]);
+            let o = run_stdin(&args, input.as_bytes());
             assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
             o.stdout
         })
@@ -354,7 +304,7 @@ fn failing_runs_leave_an_existing_output_untouched() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("tips.csv");
     std::fs::write(&out, "precious\n").unwrap();
-    let robot = path_str(&repo("data/robots/liu2023.toml")).to_owned();
+    let robot = repo("data/robots/liu2023.toml");
     // bad input in the last row
     let joints = dir.path().join("joints.csv");
     std::fs::write(
@@ -362,29 +312,14 @@ fn failing_runs_leave_an_existing_output_untouched() {
         "s1_mm,theta1_deg,s2_mm,theta2_deg\n30,0,80,0\n40,0,90,0\n50,0,40,0\n",
     )
     .unwrap();
-    let o = run(&[
-        "fk",
-        "--robot",
-        &robot,
-        "--joints",
-        path_str(&joints),
-        "-o",
-        path_str(&out),
-    ]);
+    let o = run(&fk_args(&robot, &joints, &["-o", arg(&out)]));
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("joints.csv:4: s2_mm = 40 must be >= s1_mm = 50"));
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "precious\n");
     // solver failure
     let snap = repo("tests/cli/snap");
-    let o = run(&[
-        "fk",
-        "--robot",
-        path_str(&snap.join("robot.toml")),
-        "--joints",
-        path_str(&snap.join("joints.csv")),
-        "-o",
-        path_str(&out),
-    ]);
+    let (snap_robot, snap_joints) = (snap.join("robot.toml"), snap.join("joints.csv"));
+    let o = run(&fk_args(&snap_robot, &snap_joints, &["-o", arg(&out)]));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "precious\n");
     // no temporary files left behind
@@ -395,15 +330,7 @@ fn failing_runs_leave_an_existing_output_untouched() {
     assert_eq!(names.len(), 2, "{names:?}");
     // and a successful run replaces it
     std::fs::write(&joints, "s1_mm,theta1_deg,s2_mm,theta2_deg\n30,0,80,0\n").unwrap();
-    let o = run(&[
-        "fk",
-        "--robot",
-        &robot,
-        "--joints",
-        path_str(&joints),
-        "-o",
-        path_str(&out),
-    ]);
+    let o = run(&fk_args(&robot, &joints, &["-o", arg(&out)]));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(o.stdout.is_empty());
     let text = std::fs::read_to_string(&out).unwrap();
@@ -415,13 +342,7 @@ fn failing_runs_leave_an_existing_output_untouched() {
 fn solver_failures_exit_1_or_are_skipped_or_marked() {
     let snap = repo("tests/cli/snap");
     let (robot, joints) = (snap.join("robot.toml"), snap.join("joints.csv"));
-    let base = [
-        "fk",
-        "--robot",
-        path_str(&robot),
-        "--joints",
-        path_str(&joints),
-    ];
+    let base = fk_args(&robot, &joints, &[]);
     let o = run(&base);
     assert_eq!(o.status.code(), Some(1));
     let err = stderr(&o);
@@ -452,14 +373,9 @@ fn solver_failures_exit_1_or_are_skipped_or_marked() {
 
 #[test]
 fn header_only_gives_an_empty_table() {
+    let robot = repo("data/robots/liu2023.toml");
     let o = run_stdin(
-        &[
-            "fk",
-            "--robot",
-            path_str(&repo("data/robots/liu2023.toml")),
-            "--joints",
-            "-",
-        ],
+        &fk_args(&robot, stdin_path(), &[]),
         b"label,s1_mm,theta1_deg,s2_mm,theta2_deg\n",
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -472,20 +388,14 @@ fn header_only_gives_an_empty_table() {
 #[test]
 fn robot_from_stdin() {
     let robot = std::fs::read(repo("data/robots/liu2023.toml")).unwrap();
-    let joints = path_str(&repo("data/examples/liu2023-joints.csv")).to_owned();
-    let a = run_stdin(&["fk", "--robot", "-", "--joints", &joints], &robot);
-    let b = run(&[
-        "fk",
-        "--robot",
-        path_str(&repo("data/robots/liu2023.toml")),
-        "--joints",
-        &joints,
-    ]);
+    let joints = repo("data/examples/liu2023-joints.csv");
+    let a = run_stdin(&fk_args(stdin_path(), &joints, &[]), &robot);
+    let b = run(&fk_args(&repo("data/robots/liu2023.toml"), &joints, &[]));
     assert_eq!(a.status.code(), Some(0), "{}", stderr(&a));
     assert_eq!(a.stdout, b.stdout);
     // errors in it are named <stdin>
     let o = run_stdin(
-        &["fk", "--robot", "-", "--joints", &joints],
+        &fk_args(stdin_path(), &joints, &[]),
         b"[[tube]]\nouter_diameter_mm = 1\n",
     );
     assert_eq!(o.status.code(), Some(2));
@@ -518,13 +428,11 @@ fn help_shows_an_example() {
 
 #[test]
 fn quiet_on_success_when_stderr_is_not_a_terminal() {
-    let o = run(&[
-        "fk",
-        "--robot",
-        path_str(&repo("data/robots/liu2023.toml")),
-        "--joints",
-        path_str(&repo("data/examples/liu2023-joints.csv")),
-    ]);
+    let (robot, joints) = (
+        repo("data/robots/liu2023.toml"),
+        repo("data/examples/liu2023-joints.csv"),
+    );
+    let o = run(&fk_args(&robot, &joints, &[]));
     assert_eq!(o.status.code(), Some(0));
     assert!(o.stderr.is_empty(), "{}", stderr(&o));
 }

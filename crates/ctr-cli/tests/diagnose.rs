@@ -6,14 +6,9 @@ mod common;
 use common::*;
 use std::path::PathBuf;
 
+/// `rel` in `shared/data`.
 fn shared(rel: &str) -> PathBuf {
-    std::env::var_os("CTR_SHARED_DATA")
-        .map_or_else(|| repo("../shared/data"), PathBuf::from)
-        .join(rel)
-}
-
-fn s(p: &std::path::Path) -> &str {
-    p.to_str().unwrap()
+    common::analysis::shared().join(rel)
 }
 
 #[test]
@@ -27,15 +22,15 @@ fn diagnose_writes_report_fitted_model_and_plots() {
     let o = run(&[
         "diagnose",
         "--robot",
-        s(&robot),
+        arg(&robot),
         "--recording",
-        s(&rec),
+        arg(&rec),
         "--report",
-        s(&report),
+        arg(&report),
         "--out",
-        s(&fitted),
+        arg(&fitted),
         "--plots",
-        s(&plots),
+        arg(&plots),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
@@ -83,11 +78,11 @@ fn diagnose_writes_report_fitted_model_and_plots() {
     let o = run(&[
         "evaluate",
         "--robot",
-        s(&robot),
+        arg(&robot),
         "--robot",
-        s(&fitted),
+        arg(&fitted),
         "--recording",
-        s(&rec),
+        arg(&rec),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let table = String::from_utf8_lossy(&o.stdout).into_owned();
@@ -101,7 +96,7 @@ fn diagnose_writes_report_fitted_model_and_plots() {
     // and fk solves with it
     let joints = dir.path().join("joints.csv");
     std::fs::write(&joints, "s1_mm,theta1_deg,s2_mm,theta2_deg\n35,0,80,205\n").unwrap();
-    let o = run(&["fk", "--robot", s(&fitted), "--joints", s(&joints)]);
+    let o = run(&["fk", "--robot", arg(&fitted), "--joints", arg(&joints)]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -112,13 +107,13 @@ fn calibrate_fits_the_named_effect_only() {
     let o = run(&[
         "calibrate",
         "--robot",
-        s(&shared("robots/nitinol3.toml")),
+        arg(&shared("robots/nitinol3.toml")),
         "--recording",
-        s(&shared("recordings/dev-registration.csv")),
+        arg(&shared("recordings/dev-registration.csv")),
         "--fit",
         "registration",
         "--report",
-        s(&report),
+        arg(&report),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let r: serde_json::Value =
@@ -144,60 +139,30 @@ fn bad_diagnose_input_exits_2_with_one_line() {
         "s1_mm,theta1_deg,s2_mm,theta2_deg,x_mm,y_mm,z_mm\n35,0,80,0,1,2,80\n35,0,81,0,1,2,81\n",
     )
     .unwrap();
+    // `diagnose --robot ROBOT --recording REC EXTRA...`
+    let diagnose = |extra: &[&'static str]| -> Vec<&str> {
+        [
+            &["diagnose", "--robot", arg(&robot), "--recording", arg(&rec)][..],
+            extra,
+        ]
+        .concat()
+    };
     let cases: Vec<(Vec<&str>, &str)> = vec![
+        (diagnose(&["--effects", "lag"]), "unknown effect \"lag\""),
+        (diagnose(&["--holdout", "blocks:1"]), "wanted blocks:K"),
         (
-            vec![
-                "diagnose",
-                "--robot",
-                s(&robot),
-                "--recording",
-                s(&rec),
-                "--effects",
-                "lag",
-            ],
-            "unknown effect \"lag\"",
-        ),
-        (
-            vec![
-                "diagnose",
-                "--robot",
-                s(&robot),
-                "--recording",
-                s(&rec),
-                "--holdout",
-                "blocks:1",
-            ],
-            "wanted blocks:K",
-        ),
-        (
-            vec![
-                "diagnose",
-                "--robot",
-                s(&robot),
-                "--recording",
-                s(&rec),
-                "--holdout",
-                "runs:nope",
-            ],
+            diagnose(&["--holdout", "runs:nope"]),
             "no run labelled nope",
         ),
         (
-            vec![
-                "diagnose",
-                "--robot",
-                s(&robot),
-                "--recording",
-                s(&rec),
-                "--report",
-                "/nonexistent/r.json",
-            ],
+            diagnose(&["--report", "/nonexistent/r.json"]),
             "directory /nonexistent does not exist",
         ),
         (
             vec![
                 "diagnose",
                 "--robot",
-                s(&robot),
+                arg(&robot),
                 "--recording",
                 "/nonexistent.csv",
             ],
@@ -207,9 +172,9 @@ fn bad_diagnose_input_exits_2_with_one_line() {
             vec![
                 "calibrate",
                 "--robot",
-                s(&robot),
+                arg(&robot),
                 "--recording",
-                s(&untimed),
+                arg(&untimed),
                 "--fit",
                 "latency",
             ],

@@ -14,11 +14,7 @@ use ctr_formats::{
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{cli, repo, stderr};
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
+use common::{arg, cli, fk_args, ik_args, repo, stderr};
 
 const LIU: &str = "data/robots/liu2023.toml";
 
@@ -95,7 +91,7 @@ fn cli_fk(dir: &Path, robot: &Path, joints: &str, extra: &[&str]) -> Vec<[f64; 3
     let out = dir.join("tips.csv");
     std::fs::write(&j, joints).unwrap();
     let o = cli()
-        .args(["fk", "--robot", p(robot), "--joints", p(&j), "-o", p(&out)])
+        .args(fk_args(robot, &j, &["-o", arg(&out)]))
         .args(extra)
         .output()
         .unwrap();
@@ -128,29 +124,8 @@ fn simulated(spec: &ModelSpec, rec: &Recording) -> Vec<[f64; 3]> {
     pred.p
 }
 
-const STATIC: &str = "\
-[model.effects.joint_offset]
-feed_mm = [0.4, -0.3]
-rotation_deg = [2.0, -3.0]
-
-[model.effects.clearance]
-max_deflection_deg = [2.5]
-peak_deg = [205.0]
-
-[model.effects.stiffness]
-factor = [1.1, 0.9]
-
-[model.effects.precurvature]
-radius_factor = [1.05, 0.95]
-
-[model.effects.sensor_offset]
-offset_mm = [0.5, -0.3, -2.0]
-
-[model.effects.registration]
-translation_mm = [3.0, -2.0, 5.0]
-rotation_axis = [0.3, 0.9, 0.3]
-rotation_deg = 2.0
-";
+/// Every static effect at once (the Python tests append the same tables).
+const STATIC: &str = include_str!("../../../tests/fixtures/static-effects.toml");
 
 /// Each effect alone, and combinations, through the CLI and through the simulator.
 #[test]
@@ -333,15 +308,7 @@ fn model_override_keeps_the_effects() {
     let j = dir.path().join("j.csv");
     std::fs::write(&j, joint_csv(&rows, false, false)).unwrap();
     let o = cli()
-        .args([
-            "fk",
-            "--robot",
-            p(&g),
-            "--joints",
-            p(&j),
-            "--model",
-            "rigid",
-        ])
+        .args(fk_args(&g, &j, &["--model", "rigid"]))
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
@@ -432,26 +399,13 @@ fn ik_inverts_the_static_effects() {
         let o = cli().args(args).output().unwrap();
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
     };
-    run(&[
-        "fk",
-        "--robot",
-        p(&robot),
-        "--joints",
-        p(&joints),
-        "-o",
-        p(&tips),
-    ]);
+    run(&fk_args(&robot, &joints, &["-o", arg(&tips)]));
     // the targets: x_mm,y_mm,z_mm (positions only: the label and joints are carried)
-    run(&[
-        "ik",
-        "--robot",
-        p(&robot),
-        "--targets",
-        p(&tips),
-        "--position-only",
-        "-o",
-        p(&found),
-    ]);
+    run(&ik_args(
+        &robot,
+        &tips,
+        &["--position-only", "-o", arg(&found)],
+    ));
     let mut rdr = csv::Reader::from_path(&found).unwrap();
     let h = rdr.headers().unwrap().clone();
     let status = h.iter().position(|c| c == "status").unwrap();
@@ -500,10 +454,7 @@ fn ik_refuses_time_effects() {
         ),
     ] {
         let robot = robot_with(dir.path(), name, table);
-        let o = cli()
-            .args(["ik", "--robot", p(&robot), "--targets", p(&targets)])
-            .output()
-            .unwrap();
+        let o = cli().args(ik_args(&robot, &targets, &[])).output().unwrap();
         if refused {
             assert_eq!(o.status.code(), Some(2), "{name}");
             let effect = name.split('_').next().unwrap();

@@ -14,7 +14,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{cli, repo, stderr};
+use common::{cli, repo, spawn, stderr};
 
 /// Longest any single command may take before the test fails (and kills it).
 const DEADLINE: Duration = Duration::from_secs(60);
@@ -84,6 +84,13 @@ impl Emulator {
         ];
         all.extend_from_slice(args);
         run(&all)
+    }
+
+    /// [`Emulator::hw`], checked to succeed: its standard output.
+    fn hw_ok(&self, command: &str, args: &[&str]) -> String {
+        let o = self.hw(command, args);
+        assert_ok(&o);
+        stdout(&o)
     }
 
     /// `hw run --joints JOINTS -o RECORDING EXTRA...`.
@@ -158,13 +165,7 @@ impl Drop for Emulator {
 
 /// Runs `ctr-cli ARGS` to completion, killing it if it outlives [`DEADLINE`].
 fn run(args: &[&str]) -> Output {
-    let child = cli()
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn(args, Stdio::null());
     let pid = child.id();
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
@@ -249,9 +250,7 @@ fn trajectory_rows() -> Vec<[f64; 4]> {
 
 /// `hw ping` rows as (joint, torque, hardware_error, position).
 fn ping(emulator: &Emulator) -> Vec<(String, String, String, f64)> {
-    let o = emulator.hw("ping", &[]);
-    assert_ok(&o);
-    let (header, rows) = table(&stdout(&o));
+    let (header, rows) = table(&emulator.hw_ok("ping", &[]));
     assert_eq!(
         header.join(","),
         "joint,motor_id,model,firmware,torque,hardware_error,position"
@@ -276,10 +275,8 @@ fn ping_move_run_and_home_against_the_emulator() {
     assert_eq!(start, [0.0, 0.0, 0.0, -180.0]);
 
     // move, by name=value
-    let o = emulator.hw("move", &["--joints", "s1=20,theta1=90,s2_mm=70,theta2=-45"]);
-    assert_ok(&o);
     assert_eq!(
-        stdout(&o),
+        emulator.hw_ok("move", &["--joints", "s1=20,theta1=90,s2_mm=70,theta2=-45"]),
         "s1_mm,theta1_deg,s2_mm,theta2_deg\n20,90,70,-45\n"
     );
 
@@ -289,9 +286,7 @@ fn ping_move_run_and_home_against_the_emulator() {
         "one.csv",
         "theta2_deg,s2_mm,theta1_deg,s1_mm\n10,60,-30,15\n",
     );
-    let o = emulator.hw("move", &["--joints", &one_row]);
-    assert_ok(&o);
-    let (_, rows) = table(&stdout(&o));
+    let (_, rows) = table(&emulator.hw_ok("move", &["--joints", &one_row]));
     let reached: Vec<f64> = rows[0].iter().map(|v| num(v)).collect();
     for ((got, want), column) in reached.iter().zip([15.0, -30.0, 60.0, 10.0]).zip(JOINTS) {
         assert!((got - want).abs() <= half_tick(column), "{column}: {got}");
@@ -320,9 +315,10 @@ fn ping_move_run_and_home_against_the_emulator() {
     }
 
     // home
-    let o = emulator.hw("home", &[]);
-    assert_ok(&o);
-    assert_eq!(stdout(&o), "s1_mm,theta1_deg,s2_mm,theta2_deg\n0,0,0,0\n");
+    assert_eq!(
+        emulator.hw_ok("home", &[]),
+        "s1_mm,theta1_deg,s2_mm,theta2_deg\n0,0,0,0\n"
+    );
 }
 
 #[test]

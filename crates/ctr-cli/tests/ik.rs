@@ -12,25 +12,11 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 mod common;
-use common::{cli, repo, run, run_stdin, stderr};
+use common::analysis::{dist, stable_increments, Rng};
+use common::{arg, cli, fk_args, ik_args, repo, run, run_stdin, stderr};
 
 /// Random reachable targets per robot (the 1,000 in release builds).
 const ROUND_TRIPS: usize = if cfg!(debug_assertions) { 150 } else { 1000 };
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
-
-/// The stable increment ranges of `shared/data/manifest.json` (every rotation is
-/// stable).
-fn stable_increments(name: &str) -> Vec<[f64; 2]> {
-    match name {
-        "liu2023" => vec![[20.0, 70.0], [25.0, 95.0]],
-        "nitinol2" => vec![[10.0, 60.0], [10.0, 80.0]],
-        "nitinol3" => vec![[10.0, 50.0]; 3],
-        _ => panic!("unknown robot {name}"),
-    }
-}
 
 /// The shared robot file with its stable ranges as `[limits]`, written into `dir`.
 fn limited_robot(dir: &Path, name: &str) -> PathBuf {
@@ -43,17 +29,6 @@ fn limited_robot(dir: &Path, name: &str) -> PathBuf {
     let path = dir.join(format!("{name}-limited.toml"));
     std::fs::write(&path, text).unwrap();
     path
-}
-
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 /// A joint CSV with a label column: `rows` random configurations inside the stable
@@ -166,10 +141,6 @@ fn assert_within_limits(robot: &Path, joints: &Csv) {
     }
 }
 
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
 fn tip(c: &Csv, row: usize, prefix: &str) -> [f64; 3] {
     ["x_mm", "y_mm", "z_mm"].map(|k| c.num(row, &format!("{prefix}{k}")))
 }
@@ -187,39 +158,14 @@ fn round_trip(dir: &Path, name: &str, joints: &str, extra: &[&str]) -> (Csv, Csv
     let ik_file = dir.join(format!("{name}-ik.csv"));
     let back_file = dir.join(format!("{name}-back.csv"));
     std::fs::write(&joints_file, joints).unwrap();
-    ok(&run(&[
-        "fk",
-        "--robot",
-        p(&robot),
-        "--joints",
-        p(&joints_file),
-        "-o",
-        p(&tips_file),
-    ]));
-    let mut args = vec![
-        "ik",
-        "--robot",
-        p(&robot),
-        "--targets",
-        p(&tips_file),
-        "-o",
-        p(&ik_file),
-        "--position-only",
-        "--fail-unreachable",
-    ];
-    args.extend(extra);
-    let o = run(&args);
+    let fk_command = fk_args(&robot, &joints_file, &["-o", arg(&tips_file)]);
+    ok(&run(&fk_command));
+    let ik_options = ["-o", arg(&ik_file), "--position-only", "--fail-unreachable"];
+    let ik_command = ik_args(&robot, &tips_file, &[&ik_options[..], extra].concat());
+    let o = run(&ik_command);
     ok(&o);
     assert!(o.stderr.is_empty(), "{}", stderr(&o));
-    ok(&run(&[
-        "fk",
-        "--robot",
-        p(&robot),
-        "--joints",
-        p(&ik_file),
-        "-o",
-        p(&back_file),
-    ]));
+    ok(&run(&fk_args(&robot, &ik_file, &["-o", arg(&back_file)])));
     let tips = Csv::read(&tips_file);
     let ik = Csv::read(&ik_file);
     let back = Csv::read(&back_file);
@@ -284,16 +230,8 @@ fn pose_targets_from_fk_are_reached() {
     let joints = dir.path().join("joints.csv");
     std::fs::write(&joints, smooth_joint_file(name, 100)).unwrap();
     let tips = dir.path().join("tips.csv");
-    ok(&run(&[
-        "fk",
-        "--robot",
-        p(&robot),
-        "--joints",
-        p(&joints),
-        "-o",
-        p(&tips),
-    ]));
-    let o = run(&["ik", "--robot", p(&robot), "--targets", p(&tips)]);
+    ok(&run(&fk_args(&robot, &joints, &["-o", arg(&tips)])));
+    let o = run(&ik_args(&robot, &tips, &[]));
     ok(&o);
     let ik = Csv::parse(std::str::from_utf8(&o.stdout).unwrap());
     assert!(ik.header.ends_with(
@@ -327,15 +265,7 @@ fn unreachable_targets_get_the_closest_point_and_fail_only_when_asked() {
     )
     .unwrap();
     let out = dir.path().join("joints.csv");
-    let args = [
-        "ik",
-        "--robot",
-        p(&robot),
-        "--targets",
-        p(&targets),
-        "-o",
-        p(&out),
-    ];
+    let args = ik_args(&robot, &targets, &["-o", arg(&out)]);
     let o = run(&args);
     ok(&o);
     let err = stderr(&o);
@@ -386,34 +316,13 @@ fn output_does_not_depend_on_the_thread_count() {
         .collect::<String>();
     std::fs::write(&joints, text).unwrap();
     let tips = dir.path().join("tips.csv");
-    ok(&run(&[
-        "fk",
-        "--robot",
-        p(&robot),
-        "--joints",
-        p(&joints),
-        "-o",
-        p(&tips),
-    ]));
+    ok(&run(&fk_args(&robot, &joints, &["-o", arg(&tips)])));
     for mode in [&[][..], &["--cold"], &["--chunk-rows", "7"]] {
         let outputs: Vec<Vec<u8>> = ["1", "2", "3", "8"]
             .iter()
             .map(|n| {
-                let args = [
-                    &[
-                        "ik",
-                        "--robot",
-                        p(&robot),
-                        "--targets",
-                        p(&tips),
-                        "--position-only",
-                        "--threads",
-                        n,
-                    ][..],
-                    mode,
-                ]
-                .concat();
-                let o = run(&args);
+                let options = [&["--position-only", "--threads", n][..], mode].concat();
+                let o = run(&ik_args(&robot, &tips, &options));
                 ok(&o);
                 o.stdout
             })
@@ -450,7 +359,7 @@ fn stdin_stdout_header_only_and_atomic_output() {
     let robot = repo("data/robots/nitinol3.toml");
     // header only: an empty table
     let o = run_stdin(
-        &["ik", "--robot", p(&robot), "--targets", "-"],
+        &ik_args(&robot, Path::new("-"), &[]),
         b"id,x_mm,y_mm,z_mm\n",
     );
     ok(&o);
@@ -460,7 +369,7 @@ fn stdin_stdout_header_only_and_atomic_output() {
     );
     // quoted fields are carried through as the csv crate writes them
     let o = run_stdin(
-        &["ik", "--robot", p(&robot), "--targets", "-", "-o", "-"],
+        &ik_args(&robot, Path::new("-"), &["-o", "-"]),
         b"id,x_mm,note,y_mm,z_mm\n\"a, b\",-4.48,\"say \"\"hi\"\"\",22.3,112.1\n",
     );
     ok(&o);
@@ -478,28 +387,12 @@ fn stdin_stdout_header_only_and_atomic_output() {
     std::fs::write(&out, "precious\n").unwrap();
     let targets = dir.path().join("t.csv");
     std::fs::write(&targets, "x_mm,y_mm,z_mm\n0,0,100\n0,0,abc\n").unwrap();
-    let o = run(&[
-        "ik",
-        "--robot",
-        p(&robot),
-        "--targets",
-        p(&targets),
-        "-o",
-        p(&out),
-    ]);
+    let o = run(&ik_args(&robot, &targets, &["-o", arg(&out)]));
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("t.csv:3: column z_mm: \"abc\" is not a number"));
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "precious\n");
     std::fs::write(&targets, "x_mm,y_mm,z_mm\n-4.48,22.3,112.1\n").unwrap();
-    let o = run(&[
-        "ik",
-        "--robot",
-        p(&robot),
-        "--targets",
-        p(&targets),
-        "-o",
-        p(&out),
-    ]);
+    let o = run(&ik_args(&robot, &targets, &["-o", arg(&out)]));
     ok(&o);
     assert!(o.stdout.is_empty());
     assert_eq!(Csv::read(&out).str(0, "status"), "reached");

@@ -85,6 +85,24 @@ fn relative_error(got: &Vector6<f64>, fd: &Vector6<f64>) -> f64 {
     block(0).max(block(3))
 }
 
+/// The largest relative error of the columns checked so far.
+struct Worst(f64);
+
+impl Worst {
+    /// Checks a column's relative error `rel` against [`REL_TOL`] (`column` is the
+    /// failure message) and keeps it if it is the largest.
+    fn check(&mut self, rel: f64, column: std::fmt::Arguments) {
+        assert!(rel <= REL_TOL, "{column}");
+        self.0 = self.0.max(rel);
+    }
+
+    /// Prints the largest error, `what` saying of what, and returns it.
+    fn report(self, what: std::fmt::Arguments) -> f64 {
+        eprintln!("{what} max relative error {:.3e}", self.0);
+        self.0
+    }
+}
+
 /// Worst relative error of the joint Jacobian against central differences at random
 /// configurations: of `solve_jacobian`'s plain tip, or with `effects` of
 /// `solve_jacobian_with`'s measured tip against differences of `solve_with`.
@@ -96,7 +114,7 @@ fn joint_columns<const N: usize>(
 ) -> f64 {
     let robot: Robot<f64, N> = robot::<N>(name);
     let mut rng = Rng(seed);
-    let mut worst = 0.0_f64;
+    let mut worst = Worst(0.0);
     for _ in 0..CONFIGS {
         let q = random_joints::<N>(name, &mut rng);
         let mut solver = tight_solver::<N>();
@@ -144,11 +162,12 @@ fn joint_columns<const N: usize>(
             );
             let got = jac.column(col).unwrap();
             let rel = relative_error(&got, &fd);
-            assert!(
-                rel <= REL_TOL,
-                "{name} {model:?} column {col} at {q:?}: relative error {rel:.3e}\n got {got}\n fd {fd}"
+            worst.check(
+                rel,
+                format_args!(
+                    "{name} {model:?} column {col} at {q:?}: relative error {rel:.3e}\n got {got}\n fd {fd}"
+                ),
             );
-            worst = worst.max(rel);
         }
     }
     let with = if effects.is_some() {
@@ -156,8 +175,7 @@ fn joint_columns<const N: usize>(
     } else {
         ""
     };
-    eprintln!("{name} {model:?}: joint Jacobian{with} max relative error {worst:.3e}");
-    worst
+    worst.report(format_args!("{name} {model:?}: joint Jacobian{with}"))
 }
 
 #[test]
@@ -190,7 +208,7 @@ fn scaled_robot<const N: usize>(name: &str, which: usize, tube: usize, f: f64) -
 fn parameter_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64 {
     let robot: Robot<f64, N> = robot::<N>(name);
     let mut rng = Rng(seed);
-    let mut worst = 0.0_f64;
+    let mut worst = Worst(0.0);
     for _ in 0..CONFIGS / 2 {
         let q = random_joints::<N>(name, &mut rng);
         let mut solver = tight_solver::<N>();
@@ -228,16 +246,16 @@ fn parameter_columns<const N: usize>(name: &str, model: Model, seed: u64) -> f64
                 } else {
                     relative_error(&got, &fd)
                 };
-                assert!(
-                    rel <= REL_TOL,
-                    "{name} {model:?} parameter {which} tube {tube} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+                worst.check(
+                    rel,
+                    format_args!(
+                        "{name} {model:?} parameter {which} tube {tube} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+                    ),
                 );
-                worst = worst.max(rel);
             }
         }
     }
-    eprintln!("{name} {model:?}: parameter Jacobian max relative error {worst:.3e}");
-    worst
+    worst.report(format_args!("{name} {model:?}: parameter Jacobian"))
 }
 
 #[test]
@@ -254,7 +272,7 @@ fn parameter_jacobian_matches_finite_differences() {
 fn compliance_columns<const N: usize>(name: &str, seed: u64) -> f64 {
     let robot: Robot<f64, N> = robot::<N>(name);
     let mut rng = Rng(seed);
-    let mut worst = 0.0_f64;
+    let mut worst = Worst(0.0);
     // steps: small enough that the response is linear to 1e-9 relative, large enough
     // that the tip moves ~1e-3 mm (mm/N compliances here are 1-1e3)
     let (force_step, moment_step) = (1e-6, 1e-4);
@@ -291,15 +309,15 @@ fn compliance_columns<const N: usize>(name: &str, seed: u64) -> f64 {
             let fd = difference(&tip(h), &tip(-h), &sol.tip.rotation, h);
             let got: Vector6<f64> = c.column(col).into_owned();
             let rel = relative_error(&got, &fd);
-            assert!(
-                rel <= REL_TOL,
-                "{name} compliance column {col} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+            worst.check(
+                rel,
+                format_args!(
+                    "{name} compliance column {col} at {q:?}: {rel:.3e}\n got {got}\n fd {fd}"
+                ),
             );
-            worst = worst.max(rel);
         }
     }
-    eprintln!("{name}: compliance max relative error {worst:.3e}");
-    worst
+    worst.report(format_args!("{name}: compliance"))
 }
 
 #[test]

@@ -1,27 +1,44 @@
 //! Loaded solves against closed forms.
 use ctr_core::{
-    Gravity, Joints, Loads, Model, Request, Robot, SolveError, Solver, Status, TubeParams,
+    Gravity, Joints, Loads, Model, Request, Robot, Solution, SolveError, Solver, Status, TubeParams,
 };
+
+/// A straight tube (1.2 mm outer, 0.9 mm inner diameter, 300 mm long, nitinol) and its
+/// bending stiffness E I, N mm^2.
+fn straight_tube() -> (Robot<f64, 1>, f64) {
+    let tube = TubeParams::<f64>::new(1.2, 0.9, 300.0, 0.0, 58000.0, 0.33);
+    let robot = Robot::new([tube]).unwrap();
+    let ei = robot.tubes()[0].bending_stiffness_nmm2();
+    (robot, ei)
+}
+
+/// The torsion solve of `robot` fed `len` mm at rotation `theta` rad under `loads`.
+fn solve_loaded(
+    robot: &Robot<f64, 1>,
+    len: f64,
+    theta: f64,
+    loads: Loads<f64>,
+) -> Solution<f64, 1> {
+    Solver::default()
+        .solve(
+            robot,
+            Request::new(Joints::new([len], [theta]), Model::Torsion).loads(loads),
+        )
+        .unwrap()
+}
 
 /// A straight cantilever under a small tip force bends by `F L^3 / (3 E I)`
 /// (Euler-Bernoulli); the large-deflection correction is of relative order
 /// `(F L^2 / E I)^2`, below 1e-6 here.
 #[test]
 fn cantilever_matches_euler_bernoulli() {
-    let tube = TubeParams::<f64>::new(1.2, 0.9, 300.0, 0.0, 58000.0, 0.33);
-    let robot = Robot::new([tube]).unwrap();
-    let ei = robot.tubes()[0].bending_stiffness_nmm2();
+    let (robot, ei) = straight_tube();
     for (len, force) in [(100.0, 1e-4), (150.0, -2e-5)] {
         let loads = Loads {
             tip_force_n: [0.0, force, 0.0],
             ..Default::default()
         };
-        let sol = Solver::default()
-            .solve(
-                &robot,
-                Request::new(Joints::new([len], [0.3]), Model::Torsion).loads(loads),
-            )
-            .unwrap();
+        let sol = solve_loaded(&robot, len, 0.3, loads);
         assert_eq!(sol.status, Status::Converged);
         let expected = force * len * len * len / (3.0 * ei);
         let rel = (sol.tip.position.y - expected).abs() / expected.abs();
@@ -37,20 +54,13 @@ fn cantilever_matches_euler_bernoulli() {
 /// A pure tip moment bends a straight tube into an arc of curvature `M / E I`.
 #[test]
 fn tip_moment_makes_an_arc() {
-    let tube = TubeParams::<f64>::new(1.2, 0.9, 300.0, 0.0, 58000.0, 0.33);
-    let robot = Robot::new([tube]).unwrap();
-    let ei = robot.tubes()[0].bending_stiffness_nmm2();
+    let (robot, ei) = straight_tube();
     let (len, moment) = (120.0, 0.5); // N mm about +y: bends toward +x
     let loads = Loads {
         tip_moment_nmm: [0.0, moment, 0.0],
         ..Default::default()
     };
-    let sol = Solver::default()
-        .solve(
-            &robot,
-            Request::new(Joints::new([len], [0.0]), Model::Torsion).loads(loads),
-        )
-        .unwrap();
+    let sol = solve_loaded(&robot, len, 0.0, loads);
     let k = moment / ei;
     let expected = [(1.0 - (k * len).cos()) / k, 0.0, (k * len).sin() / k];
     assert!(

@@ -11,16 +11,21 @@ fn rms(errors: &[f64]) -> f64 {
     (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt()
 }
 
-/// RMS tip error of a model over a recording: `model` maps (row index, commanded joints)
-/// to the predicted tip.
-fn rms_of<const N: usize>(
+/// RMS tip error over a recording of the solves `request` asks for: it maps (row index,
+/// commanded joints) to the request of that row (one warm solver along the rows).
+fn rms_of<'a, const N: usize>(
+    robot: &Robot<f64, N>,
     rows: &[RecRow<N>],
-    mut model: impl FnMut(usize, &Joints<f64, N>) -> nalgebra::Vector3<f64>,
+    mut request: impl FnMut(usize, &Joints<f64, N>) -> Request<'a, f64, N>,
 ) -> f64 {
+    let mut solver = Solver::default();
     let e: Vec<f64> = rows
         .iter()
         .enumerate()
-        .map(|(i, r)| (model(i, &r.q) - nalgebra::Vector3::from(r.p)).norm())
+        .map(|(i, r)| {
+            let tip = solver.solve(robot, request(i, &r.q)).unwrap().tip.position;
+            (tip - nalgebra::Vector3::from(r.p)).norm()
+        })
         .collect();
     rms(&e)
 }
@@ -30,14 +35,43 @@ fn floor(truth: &Value) -> f64 {
 }
 
 fn plain<const N: usize>(robot: &Robot<f64, N>, rows: &[RecRow<N>]) -> f64 {
-    let mut solver = Solver::default();
-    rms_of(rows, |_, q| {
-        solver
-            .solve(robot, Request::new(*q, Model::Torsion))
-            .unwrap()
-            .tip
-            .position
-    })
+    rms_of(robot, rows, |_, q| Request::new(*q, Model::Torsion))
+}
+
+/// A recording's RMS tip errors and its noise floor, mm.
+struct Errors {
+    /// With the concealed effect modelled.
+    with: f64,
+    /// With the plain torsion model.
+    without: f64,
+    /// The truth file's noise floor.
+    floor: f64,
+}
+
+/// The errors over a recording with the effect (the requests of `request`, as for
+/// [`rms_of`]) and without it, printed under `label`.
+fn errors<'a, const N: usize>(
+    label: &str,
+    robot: &Robot<f64, N>,
+    (rows, truth): (&[RecRow<N>], &Value),
+    request: impl FnMut(usize, &Joints<f64, N>) -> Request<'a, f64, N>,
+) -> Errors {
+    let with = rms_of(robot, rows, request);
+    let without = plain(robot, rows);
+    let floor = floor(truth);
+    eprintln!("{label}: {with:.4} mm with, {without:.4} without, floor {floor:.4}");
+    Errors {
+        with,
+        without,
+        floor,
+    }
+}
+
+/// A recording of `shared/data/recordings`, its truth file, and the shared robot `robot`
+/// it was made on.
+fn load<const N: usize>(id: &str, robot_name: &str) -> (Robot<f64, N>, Vec<RecRow<N>>, Value) {
+    let (rows, truth) = recording::<N>(id);
+    (robot::<N>(robot_name), rows, truth)
 }
 
 fn deg(v: &Value) -> f64 {
@@ -46,43 +80,31 @@ fn deg(v: &Value) -> f64 {
 
 #[test]
 fn clean_recording_is_at_its_noise_floor() {
-    let (rows, truth) = recording::<2>("dev-clean");
-    let e = plain(&robot::<2>("nitinol2"), &rows);
+    let (robot, rows, truth) = load::<2>("dev-clean", "nitinol2");
+    let e = plain(&robot, &rows);
     eprintln!("clean: {e:.4} mm vs floor {:.4}", floor(&truth));
     assert!(e <= 1.02 * floor(&truth));
 }
 
 #[test]
 fn clearance_convention() {
-    let (rows, truth) = recording::<2>("dev-clearance");
-    let robot = robot::<2>("liu2023");
+    let (robot, rows, truth) = load::<2>("dev-clearance", "liu2023");
     let c = &truth["world"]["effects"]["clearance"];
     let mut effects = Effects::default();
     effects.clearance[0] = Some(ClearanceProfile::Cosine {
         max_deflection_rad: deg(&c["delta_max_deg"]),
         peak_rad: deg(&c["phi0_deg"]),
     });
-    let mut solver = Solver::default();
-    let with = rms_of(&rows, |_, q| {
-        solver
-            .solve(&robot, Request::new(*q, Model::Torsion).effects(&effects))
-            .unwrap()
-            .tip
-            .position
+    let e = errors("clearance", &robot, (&rows, &truth), |_, q| {
+        Request::new(*q, Model::Torsion).effects(&effects)
     });
-    let without = plain(&robot, &rows);
-    eprintln!(
-        "clearance: {with:.4} mm with, {without:.4} without, floor {:.4}",
-        floor(&truth)
-    );
-    assert!(with <= 1.02 * floor(&truth));
-    assert!(without > 3.0 * floor(&truth));
+    assert!(e.with <= 1.02 * e.floor);
+    assert!(e.without > 3.0 * e.floor);
 }
 
 #[test]
 fn registration_convention() {
-    let (rows, truth) = recording::<3>("dev-registration");
-    let robot = robot::<3>("nitinol3");
+    let (robot, rows, truth) = load::<3>("dev-registration", "nitinol3");
     let r = &truth["world"]["effects"]["registration"];
     let v = |x: &Value| -> [f64; 3] { core::array::from_fn(|i| x[i].as_f64().unwrap()) };
     let reg = Registration::from_axis_angle(
@@ -94,13 +116,8 @@ fn registration_convention() {
         registration: Some(reg),
         ..Default::default()
     };
-    let mut solver = Solver::default();
-    let with = rms_of(&rows, |_, q| {
-        solver
-            .solve(&robot, Request::new(*q, Model::Torsion).effects(&effects))
-            .unwrap()
-            .tip
-            .position
+    let with = rms_of(&robot, &rows, |_, q| {
+        Request::new(*q, Model::Torsion).effects(&effects)
     });
     eprintln!("registration: {with:.4} mm, floor {:.4}", floor(&truth));
     assert!(with <= 1.02 * floor(&truth));
@@ -108,54 +125,31 @@ fn registration_convention() {
 
 #[test]
 fn gravity_convention() {
-    let (rows, truth) = recording::<2>("dev-gravity");
-    let robot = robot::<2>("liu2023");
+    let (robot, rows, truth) = load::<2>("dev-gravity", "liu2023");
     let loads = Loads {
         gravity: Some(Gravity::new([-1.0, 0.0, 0.0], 9.81)),
         ..Default::default()
     };
-    let mut solver = Solver::default();
-    let with = rms_of(&rows, |_, q| {
-        solver
-            .solve(&robot, Request::new(*q, Model::Torsion).loads(loads))
-            .unwrap()
-            .tip
-            .position
+    let e = errors("gravity", &robot, (&rows, &truth), |_, q| {
+        Request::new(*q, Model::Torsion).loads(loads)
     });
-    let without = plain(&robot, &rows);
-    eprintln!(
-        "gravity: {with:.4} mm with, {without:.4} without, floor {:.4}",
-        floor(&truth)
-    );
-    assert!(with <= 1.02 * floor(&truth));
-    assert!(without > 1.5 * floor(&truth));
+    assert!(e.with <= 1.02 * e.floor);
+    assert!(e.without > 1.5 * e.floor);
 }
 
 #[test]
 fn friction_convention() {
-    let (rows, truth) = recording::<2>("dev-friction");
-    let robot = robot::<2>("liu2023");
+    let (robot, rows, truth) = load::<2>("dev-friction", "liu2023");
     let w = deg(&truth["world"]["effects"]["friction"]["rotation_play_half_width_deg"]);
     let mut friction = PlayFriction::new([w, 0.0], [0.0; 2]);
-    let mut solver = Solver::default();
     let mut run = String::new();
-    let with = rms_of(&rows, |i, q| {
+    let e = errors("friction", &robot, (&rows, &truth), |i, q| {
         if rows[i].run != run {
             run = rows[i].run.clone();
             friction.reset(q);
         }
-        let actual = friction.apply(q);
-        solver
-            .solve(&robot, Request::new(actual, Model::Torsion))
-            .unwrap()
-            .tip
-            .position
+        Request::new(friction.apply(q), Model::Torsion)
     });
-    let without = plain(&robot, &rows);
-    eprintln!(
-        "friction: {with:.4} mm with, {without:.4} without, floor {:.4}",
-        floor(&truth)
-    );
-    assert!(with <= 1.02 * floor(&truth));
-    assert!(without > 3.0 * floor(&truth));
+    assert!(e.with <= 1.02 * e.floor);
+    assert!(e.without > 3.0 * e.floor);
 }

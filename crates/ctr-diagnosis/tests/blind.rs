@@ -255,374 +255,127 @@ fn registration(rotation_vector_deg: [f64; 3], translation_mm: [f64; 3]) -> Regi
     Registration::from_rotation_vector(rotation_vector_deg, translation_mm)
 }
 
-// ---- clean recordings: no findings allowed ----
-
-#[test]
-fn clean_liu2023() {
-    run(Case::new("clean_liu2023", "liu2023", 11));
+/// One `#[test]` a blind case, named as the test: `name: "robot", seed N` (and the
+/// [`Case`] builders `torsion()`, `sigma(mm)`, `outliers(fraction)`), then the concealed
+/// effects in braces as `effect: value` (each a field of [`Effects`]).
+macro_rules! blind_tests {
+    ($(
+        $(#[$attr:meta])*
+        $name:ident: $robot:literal, seed $seed:literal $(, $builder:ident($($arg:expr)?))*
+            $({ $($effect:ident: $value:expr),* $(,)? })?;
+    )*) => {
+        $(
+            $(#[$attr])*
+            #[test]
+            fn $name() {
+                run(Case::new(stringify!($name), $robot, $seed)
+                    $(.$builder($($arg)?))*
+                    .effects(Effects {
+                        $($($effect: Some($value),)*)?
+                        ..Default::default()
+                    }));
+            }
+        )*
+    };
 }
 
-#[test]
-fn clean_nitinol2() {
-    run(Case::new("clean_nitinol2", "nitinol2", 12));
-}
+blind_tests! {
+    // ---- clean recordings: no findings allowed ----
+    clean_liu2023: "liu2023", seed 11;
+    clean_nitinol2: "nitinol2", seed 12;
+    clean_nitinol3: "nitinol3", seed 13;
 
-#[test]
-fn clean_nitinol3() {
-    run(Case::new("clean_nitinol3", "nitinol3", 13));
-}
+    // ---- each effect alone ----
+    torsion_nitinol2: "nitinol2", seed 21, torsion();
+    torsion_nitinol3: "nitinol3", seed 22, torsion();
+    friction_liu2023: "liu2023", seed 23 { friction: friction(&[5.0]) };
+    friction_nitinol3: "nitinol3", seed 24 { friction: friction(&[3.0, 6.0]) };
+    clearance_nitinol2: "nitinol2", seed 25 { clearance: clearance(&[2.5], &[60.0]) };
+    clearance_liu2023: "liu2023", seed 26 { clearance: clearance(&[2.0], &[300.0]) };
+    gravity_liu2023: "liu2023", seed 27, sigma(GRAVITY_NOISE_SIGMA_MM) {
+        gravity: Gravity { direction_w: [0.0, -1.0, 0.0], g_m_s2: 9.81 },
+    };
+    registration_nitinol2: "nitinol2", seed 28 {
+        registration: registration([0.4, 1.8, 0.3], [2.0, -3.0, 1.5]),
+    };
+    registration_nitinol3: "nitinol3", seed 29 {
+        registration: registration([-1.0, 0.5, 2.5], [-1.0, 4.0, -2.0]),
+    };
+    joint_offset_liu2023: "liu2023", seed 30 { joint_offset: joint_offset(2, 1, 1.0, 5.0) };
+    joint_offset_nitinol3: "nitinol3", seed 31 { joint_offset: joint_offset(3, 1, -1.0, 5.0) };
+    stiffness_nitinol2: "nitinol2", seed 32 {
+        stiffness: Stiffness { factor: factors(2, 1, 0.75) },
+    };
+    stiffness_nitinol3: "nitinol3", seed 33 {
+        stiffness: Stiffness { factor: factors(3, 0, 1.35) },
+    };
+    precurvature_liu2023: "liu2023", seed 34 {
+        precurvature: Precurvature { radius_factor: factors(2, 1, 1.12) },
+    };
+    precurvature_nitinol3: "nitinol3", seed 35 {
+        precurvature: Precurvature { radius_factor: factors(3, 1, 0.88) },
+    };
+    latency_nitinol2: "nitinol2", seed 36 { latency: Latency { tau_s: 0.4 } };
+    latency_nitinol3: "nitinol3", seed 37 { latency: Latency { tau_s: 0.7 } };
+    sensor_offset_nitinol2: "nitinol2", seed 38 {
+        sensor_offset: SensorOffset { offset_mm: [0.0, 1.5, -3.0] },
+    };
+    sensor_offset_liu2023: "liu2023", seed 39 {
+        sensor_offset: SensorOffset { offset_mm: [2.0, 0.0, -4.0] },
+    };
 
-// ---- each effect alone ----
-
-#[test]
-fn torsion_nitinol2() {
-    run(Case::new("torsion_nitinol2", "nitinol2", 21).torsion());
-}
-
-#[test]
-fn torsion_nitinol3() {
-    run(Case::new("torsion_nitinol3", "nitinol3", 22).torsion());
-}
-
-#[test]
-fn friction_liu2023() {
-    run(
-        Case::new("friction_liu2023", "liu2023", 23).effects(Effects {
-            friction: Some(friction(&[5.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn friction_nitinol3() {
-    run(
-        Case::new("friction_nitinol3", "nitinol3", 24).effects(Effects {
-            friction: Some(friction(&[3.0, 6.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn clearance_nitinol2() {
-    run(
-        Case::new("clearance_nitinol2", "nitinol2", 25).effects(Effects {
-            clearance: Some(clearance(&[2.5], &[60.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn clearance_liu2023() {
-    run(
-        Case::new("clearance_liu2023", "liu2023", 26).effects(Effects {
-            clearance: Some(clearance(&[2.0], &[300.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn gravity_liu2023() {
-    run(Case::new("gravity_liu2023", "liu2023", 27)
-        .sigma(GRAVITY_NOISE_SIGMA_MM)
-        .effects(Effects {
-            gravity: Some(Gravity {
-                direction_w: [0.0, -1.0, 0.0],
-                g_m_s2: 9.81,
-            }),
-            ..Default::default()
-        }));
-}
-
-#[test]
-fn registration_nitinol2() {
-    run(
-        Case::new("registration_nitinol2", "nitinol2", 28).effects(Effects {
-            registration: Some(registration([0.4, 1.8, 0.3], [2.0, -3.0, 1.5])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn registration_nitinol3() {
-    run(
-        Case::new("registration_nitinol3", "nitinol3", 29).effects(Effects {
-            registration: Some(registration([-1.0, 0.5, 2.5], [-1.0, 4.0, -2.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn joint_offset_liu2023() {
-    run(
-        Case::new("joint_offset_liu2023", "liu2023", 30).effects(Effects {
-            joint_offset: Some(joint_offset(2, 1, 1.0, 5.0)),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn joint_offset_nitinol3() {
-    run(
-        Case::new("joint_offset_nitinol3", "nitinol3", 31).effects(Effects {
-            joint_offset: Some(joint_offset(3, 1, -1.0, 5.0)),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn stiffness_nitinol2() {
-    run(
-        Case::new("stiffness_nitinol2", "nitinol2", 32).effects(Effects {
-            stiffness: Some(Stiffness {
-                factor: factors(2, 1, 0.75),
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn stiffness_nitinol3() {
-    run(
-        Case::new("stiffness_nitinol3", "nitinol3", 33).effects(Effects {
-            stiffness: Some(Stiffness {
-                factor: factors(3, 0, 1.35),
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn precurvature_liu2023() {
-    run(
-        Case::new("precurvature_liu2023", "liu2023", 34).effects(Effects {
-            precurvature: Some(Precurvature {
-                radius_factor: factors(2, 1, 1.12),
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn precurvature_nitinol3() {
-    run(
-        Case::new("precurvature_nitinol3", "nitinol3", 35).effects(Effects {
-            precurvature: Some(Precurvature {
-                radius_factor: factors(3, 1, 0.88),
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn latency_nitinol2() {
-    run(
-        Case::new("latency_nitinol2", "nitinol2", 36).effects(Effects {
-            latency: Some(Latency { tau_s: 0.4 }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn latency_nitinol3() {
-    run(
-        Case::new("latency_nitinol3", "nitinol3", 37).effects(Effects {
-            latency: Some(Latency { tau_s: 0.7 }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn sensor_offset_nitinol2() {
-    run(
-        Case::new("sensor_offset_nitinol2", "nitinol2", 38).effects(Effects {
-            sensor_offset: Some(SensorOffset {
-                offset_mm: [0.0, 1.5, -3.0],
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn sensor_offset_liu2023() {
-    run(
-        Case::new("sensor_offset_liu2023", "liu2023", 39).effects(Effects {
-            sensor_offset: Some(SensorOffset {
-                offset_mm: [2.0, 0.0, -4.0],
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-// ---- pairs, the confusable ones above all ----
-
-#[test]
-fn latency_friction_liu2023() {
-    run(
-        Case::new("latency_friction_liu2023", "liu2023", 41).effects(Effects {
-            latency: Some(Latency { tau_s: 0.3 }),
-            friction: Some(friction(&[5.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn latency_friction_nitinol2() {
-    run(
-        Case::new("latency_friction_nitinol2", "nitinol2", 42).effects(Effects {
-            latency: Some(Latency { tau_s: 0.6 }),
-            friction: Some(friction(&[3.0])),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn registration_joint_offset_nitinol2() {
-    run(
-        Case::new("registration_joint_offset_nitinol2", "nitinol2", 43).effects(Effects {
-            registration: Some(registration([0.0, 1.0, 2.0], [3.0, 1.0, -2.0])),
-            joint_offset: Some(joint_offset(2, 1, 1.0, 5.0)),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn registration_joint_offset_nitinol3() {
-    run(
-        Case::new("registration_joint_offset_nitinol3", "nitinol3", 44).effects(Effects {
-            registration: Some(registration([1.5, 0.0, -1.5], [-2.0, 2.0, 3.0])),
-            joint_offset: Some(joint_offset(3, 2, 1.0, -5.0)),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn registration_joint_offset_outer_liu2023() {
+    // ---- pairs, the confusable ones above all ----
+    latency_friction_liu2023: "liu2023", seed 41 {
+        latency: Latency { tau_s: 0.3 },
+        friction: friction(&[5.0]),
+    };
+    latency_friction_nitinol2: "nitinol2", seed 42 {
+        latency: Latency { tau_s: 0.6 },
+        friction: friction(&[3.0]),
+    };
+    registration_joint_offset_nitinol2: "nitinol2", seed 43 {
+        registration: registration([0.0, 1.0, 2.0], [3.0, 1.0, -2.0]),
+        joint_offset: joint_offset(2, 1, 1.0, 5.0),
+    };
+    registration_joint_offset_nitinol3: "nitinol3", seed 44 {
+        registration: registration([1.5, 0.0, -1.5], [-2.0, 2.0, 3.0]),
+        joint_offset: joint_offset(3, 2, 1.0, -5.0),
+    };
     // the outer tube's rotation offset turns the whole robot except the inner tube's
     // relative angle: closest to the registration's rotation about z
-    run(
-        Case::new("registration_joint_offset_outer_liu2023", "liu2023", 50).effects(Effects {
-            registration: Some(registration([0.5, 0.0, 2.0], [-2.0, 1.0, 2.0])),
-            joint_offset: Some(joint_offset(2, 0, 1.0, 5.0)),
-            ..Default::default()
-        }),
-    );
-}
+    registration_joint_offset_outer_liu2023: "liu2023", seed 50 {
+        registration: registration([0.5, 0.0, 2.0], [-2.0, 1.0, 2.0]),
+        joint_offset: joint_offset(2, 0, 1.0, 5.0),
+    };
+    stiffness_precurvature_nitinol2: "nitinol2", seed 45 {
+        stiffness: Stiffness { factor: factors(2, 1, 1.3) },
+        precurvature: Precurvature { radius_factor: factors(2, 0, 0.9) },
+    };
+    stiffness_precurvature_liu2023: "liu2023", seed 46 {
+        stiffness: Stiffness { factor: factors(2, 0, 0.75) },
+        precurvature: Precurvature { radius_factor: factors(2, 1, 1.1) },
+    };
+    clearance_latency_nitinol2: "nitinol2", seed 47 {
+        clearance: clearance(&[3.0], &[150.0]),
+        latency: Latency { tau_s: 0.5 },
+    };
+    gravity_registration_liu2023: "liu2023", seed 48, sigma(GRAVITY_NOISE_SIGMA_MM) {
+        gravity: Gravity { direction_w: [-1.0, 0.0, 0.0], g_m_s2: 9.81 },
+        registration: registration([0.0, 0.0, 1.5], [1.0, 2.0, 0.0]),
+    };
+    torsion_sensor_offset_nitinol3: "nitinol3", seed 49, torsion() {
+        sensor_offset: SensorOffset { offset_mm: [1.0, -1.0, -3.0] },
+    };
 
-#[test]
-fn stiffness_precurvature_nitinol2() {
-    run(
-        Case::new("stiffness_precurvature_nitinol2", "nitinol2", 45).effects(Effects {
-            stiffness: Some(Stiffness {
-                factor: factors(2, 1, 1.3),
-            }),
-            precurvature: Some(Precurvature {
-                radius_factor: factors(2, 0, 0.9),
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn stiffness_precurvature_liu2023() {
-    run(
-        Case::new("stiffness_precurvature_liu2023", "liu2023", 46).effects(Effects {
-            stiffness: Some(Stiffness {
-                factor: factors(2, 0, 0.75),
-            }),
-            precurvature: Some(Precurvature {
-                radius_factor: factors(2, 1, 1.1),
-            }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn clearance_latency_nitinol2() {
-    run(
-        Case::new("clearance_latency_nitinol2", "nitinol2", 47).effects(Effects {
-            clearance: Some(clearance(&[3.0], &[150.0])),
-            latency: Some(Latency { tau_s: 0.5 }),
-            ..Default::default()
-        }),
-    );
-}
-
-#[test]
-fn gravity_registration_liu2023() {
-    run(Case::new("gravity_registration_liu2023", "liu2023", 48)
-        .sigma(GRAVITY_NOISE_SIGMA_MM)
-        .effects(Effects {
-            gravity: Some(Gravity {
-                direction_w: [-1.0, 0.0, 0.0],
-                g_m_s2: 9.81,
-            }),
-            registration: Some(registration([0.0, 0.0, 1.5], [1.0, 2.0, 0.0])),
-            ..Default::default()
-        }));
-}
-
-#[test]
-fn torsion_sensor_offset_nitinol3() {
-    run(Case::new("torsion_sensor_offset_nitinol3", "nitinol3", 49)
-        .torsion()
-        .effects(Effects {
-            sensor_offset: Some(SensorOffset {
-                offset_mm: [1.0, -1.0, -3.0],
-            }),
-            ..Default::default()
-        }));
-}
-
-// ---- outliers: 1 % of the rows jump by 5 mm; the findings must not change ----
-
-#[test]
-fn outliers_clean_nitinol2() {
-    run(Case::new("outliers_clean_nitinol2", "nitinol2", 51).outliers(0.01));
-}
-
-#[test]
-fn outliers_clearance_liu2023() {
-    run(Case::new("outliers_clearance_liu2023", "liu2023", 52)
-        .outliers(0.01)
-        .effects(Effects {
-            clearance: Some(clearance(&[2.5], &[205.0])),
-            ..Default::default()
-        }));
-}
-
-#[test]
-fn outliers_latency_friction_nitinol3() {
-    run(
-        Case::new("outliers_latency_friction_nitinol3", "nitinol3", 53)
-            .outliers(0.01)
-            .effects(Effects {
-                latency: Some(Latency { tau_s: 0.25 }),
-                friction: Some(friction(&[4.0, 4.0])),
-                ..Default::default()
-            }),
-    );
+    // ---- outliers: 1 % of the rows jump by 5 mm; the findings must not change ----
+    outliers_clean_nitinol2: "nitinol2", seed 51, outliers(0.01);
+    outliers_clearance_liu2023: "liu2023", seed 52, outliers(0.01) {
+        clearance: clearance(&[2.5], &[205.0]),
+    };
+    outliers_latency_friction_nitinol3: "nitinol3", seed 53, outliers(0.01) {
+        latency: Latency { tau_s: 0.25 },
+        friction: friction(&[4.0, 4.0]),
+    };
 }
 
 // ---- the generator itself ----

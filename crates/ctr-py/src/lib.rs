@@ -1,17 +1,17 @@
 //! `ctr_py._ctr`: the compiled half of the `ctr-py` wheel (import `ctr_py`).
 //!
 //! A thin layer over `ctr-analysis`, with no numerics of its own: array-likes in are
-//! checked for dtype and shape and copied into row-major `f64` rows ([`arrays`]);
+//! checked for dtype and shape and copied into row-major `f64` rows (module `arrays`);
 //! each call checks the rows as the CLI checks a joint file, then calls the std
 //! layer (batch FK, IK, the Jacobian, the backbone) with the GIL released, on all
 //! cores; results go back as numpy arrays. Errors become the `ctr_py` exception
-//! hierarchy ([`errors`]) with the CLI's one-line messages.
+//! hierarchy (module `errors`) with the CLI's one-line messages.
 //!
 //! The Python package (`python/ctr_py`) re-exports this module's classes beside its
 //! pure-Python exception classes; `_ctr.pyi` there documents the Python API.
 //! Recordings, diagnosis, calibration and evaluation (`ctr_py.read_recording`,
 //! `ctr_py.diagnose`, `ctr_py.calibrate`, `ctr_py.evaluate`) are module functions in
-//! [`recording`] and [`diagnosis`], over `ctr_diagnosis`, as `ctr-cli diagnose`
+//! modules `recording` and `diagnosis`, over `ctr_diagnosis`, as `ctr-cli diagnose`
 //! calls it.
 //!
 //! Rust tests here never start an interpreter (see the toolchain notes): the Python

@@ -1,9 +1,13 @@
-//! Helpers shared by the end-to-end tests of `ctr-cli`.
+//! Helpers shared by the end-to-end tests of `ctr-cli`, and ctr-analysis's test set-up
+//! (the shared data, the stable ranges, random numbers, the core row by row).
 #![allow(dead_code)]
+
+#[path = "../../../ctr-analysis/tests/common/mod.rs"]
+pub mod analysis;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 
 /// A path relative to the repository root.
 pub fn repo(rel: &str) -> PathBuf {
@@ -12,9 +16,48 @@ pub fn repo(rel: &str) -> PathBuf {
         .join(rel)
 }
 
+/// `path` as a command line argument.
+pub fn arg(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// `-`, standard input in place of an input file.
+pub fn stdin_path() -> &'static Path {
+    Path::new("-")
+}
+
+/// The arguments `fk --robot ROBOT --joints JOINTS EXTRA...`.
+pub fn fk_args<'a>(robot: &'a Path, joints: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    [
+        &["fk", "--robot", arg(robot), "--joints", arg(joints)][..],
+        extra,
+    ]
+    .concat()
+}
+
+/// The arguments `ik --robot ROBOT --targets TARGETS EXTRA...`.
+pub fn ik_args<'a>(robot: &'a Path, targets: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    [
+        &["ik", "--robot", arg(robot), "--targets", arg(targets)][..],
+        extra,
+    ]
+    .concat()
+}
+
 /// The binary under test.
 pub fn cli() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ctr-cli"))
+}
+
+/// Starts it with `args`, standard input from `stdin`, standard output and error piped.
+pub fn spawn(args: &[&str], stdin: Stdio) -> Child {
+    cli()
+        .args(args)
+        .stdin(stdin)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
 }
 
 /// Runs it to completion.
@@ -24,13 +67,7 @@ pub fn run(args: &[&str]) -> Output {
 
 /// Runs it with `input` on standard input.
 pub fn run_stdin(args: &[&str], input: &[u8]) -> Output {
-    let mut child = cli()
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn(args, Stdio::piped());
     child.stdin.take().unwrap().write_all(input).unwrap();
     child.wait_with_output().unwrap()
 }
