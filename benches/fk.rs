@@ -23,7 +23,7 @@
 //!
 //! `torsion+jacobian/warm`: the warm solve plus the 6 x 2N joint Jacobian (one pass with
 //! the twist in dual numbers and the frame's derivatives as spatial twists,
-//! `ctr_core::jacobian`).
+//! `ctr_core::solve::jacobian`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ctr_core::{JointJacobian, Joints, Model, Request, Robot, Solver};

@@ -104,8 +104,8 @@ impl Worst {
 }
 
 /// Worst relative error of the joint Jacobian against central differences at random
-/// configurations: of `solve_jacobian`'s plain tip, or with `effects` of
-/// `solve_jacobian_with`'s measured tip against differences of `solve_with`.
+/// configurations: of the plain tip, or with `effects` of the measured tip, against
+/// differences of the same request without the Jacobian.
 fn joint_columns<const N: usize>(
     name: &str,
     model: Model,
