@@ -129,6 +129,23 @@ impl EffectId {
         }
     }
 
+    /// `m` with this effect taken out (the rigid model for torsion).
+    pub(crate) fn remove(self, m: &mut ModelSpec) {
+        let e = &mut m.effects;
+        match self {
+            EffectId::Torsion => m.model = Model::Rigid,
+            EffectId::Friction => e.friction = None,
+            EffectId::Clearance => e.clearance = None,
+            EffectId::Gravity => e.gravity = None,
+            EffectId::Registration => e.registration = None,
+            EffectId::JointOffset => e.joint_offset = None,
+            EffectId::Stiffness => e.stiffness = None,
+            EffectId::Precurvature => e.precurvature = None,
+            EffectId::Latency => e.latency = None,
+            EffectId::SensorOffset => e.sensor_offset = None,
+        }
+    }
+
     /// Number of parameters for a robot of `n` tubes.
     pub fn n_params(self, n: usize) -> usize {
         let pairs = n.saturating_sub(1);

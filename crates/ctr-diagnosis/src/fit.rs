@@ -188,7 +188,7 @@ impl Problem<'_> {
     }
 
     /// Jacobian of the predictions by central differences (one-sided at a bound).
-    fn jacobian(&self, x: &[f64], p0: &[f64]) -> Option<DMatrix<f64>> {
+    pub fn jacobian(&self, x: &[f64], p0: &[f64]) -> Option<DMatrix<f64>> {
         let np = x.len();
         let m = p0.len();
         let column = |j: usize| -> Option<Vec<f64>> {

@@ -44,9 +44,11 @@
 
 mod calibrate;
 mod candidates;
+mod empirical;
 mod error;
 mod evaluate;
 mod fit;
+mod hybrid;
 pub mod locate;
 mod noise;
 mod options;
@@ -58,14 +60,17 @@ mod split;
 mod start;
 #[cfg(feature = "synth")]
 pub mod synth;
+mod verify;
 
 pub use calibrate::calibrate;
 pub use candidates::EffectId;
 pub use error::DiagnoseError;
 pub use evaluate::evaluate;
+pub use hybrid::{Empirical, Term, FOLDS, MAX_TERMS};
 pub use locate::Statement;
-pub use noise::{estimate_noise, OUTLIER_SIGMAS};
+pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::Options;
 pub use report::{Diagnosis, Figures, Finding, Noise, Report, RunErrors, Split, Trial};
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};
+pub use verify::{MAX_SIGNATURE_SHARE, MIN_GAIN_OVER_EMPIRICAL};

@@ -6,9 +6,10 @@ use ctr_formats::Recording;
 
 /// What is left counts as noise when its RMS is at most this many times the noise
 /// estimate's.
-pub(crate) const NOISE_TOLERANCE: f64 = 1.15;
-/// A row the final model misses by more than this many noise standard deviations (per
-/// axis) is a tracker outlier (a 3-D Gaussian error exceeds 6 sigma once in 10^7).
+pub const NOISE_TOLERANCE: f64 = 1.15;
+/// A row whose final error lies more than this many robust standard deviations (per
+/// axis, of the final residual itself) from the residual's median is a tracker outlier
+/// (a 3-D Gaussian error exceeds 6 sigma once in 10^7).
 pub const OUTLIER_SIGMAS: f64 = 6.0;
 /// Robust standard deviation from a median absolute deviation.
 const MAD_TO_SIGMA: f64 = 1.4826;
@@ -52,15 +53,48 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Rows whose error exceeds [`OUTLIER_SIGMAS`] noise standard deviations.
-pub(crate) fn outlier_rows(e: &[[f64; 3]], noise: &Noise) -> Vec<usize> {
-    if noise.sigma_mm_per_axis.is_nan() || noise.sigma_mm_per_axis <= 0.0 {
-        return Vec::new();
+/// The tracker outliers of a final residual `e`: the rows farther than
+/// [`OUTLIER_SIGMAS`] robust standard deviations from the residual's median, the
+/// deviation taken per axis from the residual's own median absolute deviation (not
+/// from the noise estimate: a structured residual that is left is spread, not
+/// outlying). The rows, ascending, and the threshold, mm (infinite when the spread
+/// cannot be estimated).
+pub(crate) fn outlier_rows(e: &[[f64; 3]]) -> (Vec<usize>, f64) {
+    if e.len() < MIN_ROWS_FOR_OUTLIERS {
+        return (Vec::new(), f64::INFINITY);
     }
-    let limit = OUTLIER_SIGMAS * noise.sigma_mm_per_axis;
-    e.iter()
+    let mut centre = [0.0; 3];
+    let mut var = 0.0;
+    for a in 0..3 {
+        let mut v: Vec<f64> = e.iter().map(|r| r[a]).collect();
+        centre[a] = median(&mut v);
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - centre[a]).abs()).collect();
+        var += (MAD_TO_SIGMA * median(&mut dev)).powi(2) / 3.0;
+    }
+    let limit = OUTLIER_SIGMAS * var.sqrt();
+    if limit.is_nan() || limit <= 0.0 {
+        return (Vec::new(), f64::INFINITY);
+    }
+    let rows = e
+        .iter()
         .enumerate()
-        .filter(|(_, v)| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() > limit)
+        .filter(|(_, v)| {
+            let d: f64 = (0..3).map(|a| (v[a] - centre[a]).powi(2)).sum();
+            d.sqrt() > limit
+        })
         .map(|(r, _)| r)
-        .collect()
+        .collect();
+    (rows, limit)
+}
+
+/// Fewest rows for a robust spread.
+const MIN_ROWS_FOR_OUTLIERS: usize = 9;
+
+/// The outlier rule in words, for the report.
+pub(crate) fn outlier_rule() -> String {
+    format!(
+        "a row is a tracker outlier when its final error lies more than {OUTLIER_SIGMAS} robust \
+         standard deviations from the residual's median (per axis, {MAD_TO_SIGMA} x the median \
+         absolute deviation of the final residual)"
+    )
 }

@@ -2,7 +2,6 @@
 //! as the robot file writes them, and what is left.
 
 use crate::candidates::EffectId;
-use crate::noise::{NOISE_TOLERANCE, OUTLIER_SIGMAS};
 use crate::report::{Figures, Noise};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::Recording;
@@ -172,14 +171,16 @@ pub(crate) fn leftover(
     fig: &Figures,
     inliers: &Figures,
     outliers: &[usize],
+    outlier_threshold_mm: f64,
     noise: &Noise,
+    explained: bool,
     where_: impl FnOnce() -> String,
 ) -> String {
     let outlier_note = if outliers.is_empty() {
         String::new()
     } else {
         format!(
-            " once {} row{} the model misses by more than {OUTLIER_SIGMAS} noise deviations \
+            " once {} row{} farther than {outlier_threshold_mm:.3} mm from the residual's median \
              (tracker outliers: lines {}) are set aside",
             outliers.len(),
             if outliers.len() == 1 { "" } else { "s" },
@@ -192,7 +193,7 @@ pub(crate) fn leftover(
                 + if outliers.len() > 10 { ", ..." } else { "" }
         )
     };
-    if inliers.rms_mm <= NOISE_TOLERANCE * noise.rms_mm {
+    if explained {
         format!(
             "residual is consistent with measurement noise{outlier_note}: {:.3} mm RMS on the \
              fit rows, {:.3} mm held out, against {:.3} mm of noise estimated from the data",

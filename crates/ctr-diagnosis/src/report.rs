@@ -2,6 +2,7 @@
 //! `shared/spec/formats.md`) and its plain-language summary.
 
 use crate::candidates::EffectId;
+use crate::hybrid::Empirical;
 use crate::locate::Statement;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::RobotSpec;
@@ -38,6 +39,10 @@ pub struct Finding {
     pub heldout_rms_mm_before: f64,
     /// Held-out RMS after, mm.
     pub heldout_rms_mm_after: f64,
+    /// Held-out RMS of the final model with this effect replaced by the generic
+    /// empirical correction of as many parameters, mm (NaN for torsion): the yardstick
+    /// it beat (see `verify`).
+    pub empirical_heldout_rms_mm: f64,
 }
 
 /// The noise estimate.
@@ -88,11 +93,20 @@ pub struct Report {
     pub baseline: Figures,
     /// Effects found, in the order added.
     pub findings: Vec<Finding>,
-    /// The fitted model.
+    /// The fitted model, every row counted (outliers too).
     #[serde(rename = "final")]
     pub final_: Figures,
+    /// The verdict: true when the held-out residual of the fitted model (tracker
+    /// outliers set aside) is consistent with the noise estimate, at most
+    /// [`NOISE_TOLERANCE`](crate::NOISE_TOLERANCE) times its RMS; false when a part is
+    /// left that no effect of the vocabulary accounts for (`unexplained` says where).
+    pub explained: bool,
     /// What is left, in words.
     pub unexplained: String,
+    /// The labelled empirical correction fitted on top of the found physics for what
+    /// is left, apart from `findings` (absent when the physics explains the recording).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub empirical: Option<Empirical>,
     /// Noise estimated from the data.
     pub noise: Noise,
     /// The split.
@@ -103,10 +117,14 @@ pub struct Report {
     pub tried: Vec<Trial>,
     /// Rows whose solve did not converge under the final model.
     pub failed_rows: usize,
-    /// File lines of the rows the final model misses by more than
-    /// [`OUTLIER_SIGMAS`](crate::OUTLIER_SIGMAS) noise standard deviations: tracker outliers, kept out of the
-    /// fit by the robust loss.
+    /// File lines of the rows whose final error lies more than `outlier_threshold_mm`
+    /// from the residual's median: tracker outliers, kept out of the fit by the robust
+    /// loss (and still counted in `final`).
     pub outlier_lines: Vec<usize>,
+    /// The rule that set the outliers apart, in words.
+    pub outlier_rule: String,
+    /// The rule's threshold on a row's distance from the residual's median, mm.
+    pub outlier_threshold_mm: f64,
     /// The final model's figures without those rows.
     pub final_inliers: Figures,
 }
@@ -125,8 +143,15 @@ impl Report {
     /// the error, where it sits, each finding with its gain, and what is left.
     pub fn summary(&self, recording: &str) -> String {
         let mut s = format!(
-            "{recording}: the model misses the measured tip by {:.3} mm RMS ({:.3} mm on \
-             held-out rows, largest {:.3} mm).\n",
+            "{recording}: explained: {}: after fitting, {:.3} mm RMS is left on held-out rows \
+             (all rows counted) against {:.3} mm of noise estimated from the data.\n",
+            if self.explained { "yes" } else { "no" },
+            self.final_.heldout_rms_mm,
+            self.noise.rms_mm
+        );
+        s += &format!(
+            "The model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out rows, \
+             largest {:.3} mm).\n",
             self.baseline.rms_mm, self.baseline.heldout_rms_mm, self.baseline.max_mm
         );
         let patterns: Vec<&str> = self

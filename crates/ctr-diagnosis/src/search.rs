@@ -11,6 +11,7 @@ use crate::prose::{explain, parameters};
 use crate::report::{Diagnosis, Figures, Finding, Trial};
 use crate::residual::{errors, figures};
 use crate::start::{sample_period, Start};
+use crate::verify;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
@@ -142,8 +143,16 @@ pub fn diagnose(
             };
             let e = errors(rec, &pred.p);
             let fig = figures(&e, held);
-            let k = c.n_params(n) as f64;
-            let bic = n_obs * (fitted.cost / current_cost).ln() + k * n_obs.ln();
+            let k = c.n_params(n);
+            let bic = n_obs * (fitted.cost / current_cost).ln() + k as f64 * n_obs.ln();
+            let note = if bic >= 0.0 {
+                "not added: the information criterion rejects it".to_string()
+            } else if fig.heldout_rms_mm >= current_fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN) {
+                "not added: no gain on held-out rows".to_string()
+            } else {
+                String::new()
+            };
+            let passes = note.is_empty();
             round_trials.push(Trial {
                 round,
                 effect: c,
@@ -151,10 +160,8 @@ pub fn diagnose(
                 heldout_rms_mm: fig.heldout_rms_mm,
                 bic_change: bic,
                 added: false,
-                note: String::new(),
+                note,
             });
-            let passes = bic < 0.0
-                && fig.heldout_rms_mm < current_fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN);
             if passes
                 && best
                     .as_ref()
@@ -177,13 +184,6 @@ pub fn diagnose(
             e,
         }) = best
         else {
-            for t in &mut round_trials {
-                if t.note.is_empty() {
-                    t.note = "not added: no gain on held-out rows or the information \
-                              criterion rejects it"
-                        .into();
-                }
-            }
             tried.extend(round_trials);
             break;
         };
@@ -239,6 +239,7 @@ pub fn diagnose(
             rms_mm_after: fig.rms_mm,
             heldout_rms_mm_before: current_fig.heldout_rms_mm,
             heldout_rms_mm_after: fig.heldout_rms_mm,
+            empirical_heldout_rms_mm: f64::NAN,
         });
         // the earlier findings' parameters moved in the joint refit
         for f in &mut findings {
@@ -249,6 +250,62 @@ pub fn diagnose(
         current_fig = fig;
         current_cost = cost;
         current_e = e;
+    }
+    // every finding checked with the others in place; those that fail are taken out
+    // and the rest refitted together, until all pass
+    let ctx = verify::Context {
+        rec,
+        held,
+        huber_mm: huber,
+        threads,
+        noise_rms_mm: start.noise.rms_mm,
+    };
+    let last_round = tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
+    loop {
+        let checks: Vec<verify::Checked> = accepted
+            .iter()
+            .map(|&c| ctx.check(&current, &current_e, c))
+            .collect();
+        for ch in &checks {
+            if let Some(f) = findings.iter_mut().find(|f| f.effect == ch.effect) {
+                f.empirical_heldout_rms_mm = ch.empirical_heldout_rms_mm;
+            }
+        }
+        let failed: Vec<&verify::Checked> = checks.iter().filter(|c| c.failure.is_some()).collect();
+        if failed.is_empty() {
+            break;
+        }
+        for ch in &failed {
+            tried.push(Trial {
+                round: last_round,
+                effect: ch.effect,
+                rms_mm: current_fig.rms_mm,
+                heldout_rms_mm: current_fig.heldout_rms_mm,
+                bic_change: f64::NAN,
+                added: false,
+                note: removed_note(ch),
+            });
+        }
+        accepted.retain(|c| failed.iter().all(|f| f.effect != *c));
+        findings.retain(|f| accepted.contains(&f.effect));
+        let x0: Vec<f64> = accepted.iter().flat_map(|b| b.read(&current)).collect();
+        let p = problem(model.clone(), accepted.clone());
+        let refit = if accepted.is_empty() {
+            Some(model.clone())
+        } else {
+            p.fit(&x0, MAX_FIT_ITERATIONS).map(|f| p.model(&f.x))
+        };
+        let Some(m) = refit else { break };
+        let Ok(pred) = predict(&m, rec, all_runs) else {
+            break;
+        };
+        current_e = errors(rec, &pred.p);
+        current_fig = figures(&current_e, held);
+        for f in &mut findings {
+            f.parameters = parameters(f.effect, &m);
+            f.explanation = explain(f.effect, &m);
+        }
+        current = m;
     }
     let final_pred = predict(&current, rec, all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
@@ -262,4 +319,23 @@ pub fn diagnose(
         final_pred.failed,
         |fit_mask| locate::summary(&locate::locate(rec, &current_e, fit_mask, &final_pred.p)),
     ))
+}
+
+/// Why a finding was taken out after the search, for its trial.
+fn removed_note(ch: &verify::Checked) -> String {
+    match &ch.failure {
+        Some(verify::Failure::Empirical { heldout_rms_mm }) => format!(
+            "removed after the search: a generic empirical correction of as many parameters, \
+             in its place, does as well on held-out rows ({heldout_rms_mm:.3} mm)"
+        ),
+        Some(verify::Failure::Varying {
+            feature,
+            heldout_rms_mm,
+        }) => format!(
+            "removed after the search: its parameters are not constant but vary with \
+             {feature} (with them varying, {heldout_rms_mm:.3} mm held out): it stands in for \
+             something outside the vocabulary"
+        ),
+        None => String::new(),
+    }
 }

@@ -3,8 +3,9 @@
 //! report of the fitted model.
 
 use crate::error::DiagnoseError;
+use crate::hybrid;
 use crate::locate::{self, Statement};
-use crate::noise::{estimate_noise, median, outlier_rows};
+use crate::noise::{estimate_noise, median, outlier_rows, outlier_rule, NOISE_TOLERANCE};
 use crate::prose::leftover;
 use crate::report::{Diagnosis, Figures, Finding, Noise, Report, Split, Trial};
 use crate::residual::{errors, figures, inlier_figures};
@@ -88,6 +89,7 @@ impl Start {
         failed_rows: usize,
         where_left: impl FnOnce(&[bool]) -> String,
     ) -> Diagnosis {
+        let huber_mm = self.huber_mm();
         let again = estimate_noise(rec, e);
         let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis
             || !self.noise.sigma_mm_per_axis.is_finite()
@@ -96,18 +98,31 @@ impl Start {
         } else {
             self.noise
         };
-        let outliers = outlier_rows(e, &noise);
+        // outliers judged on what is left after the physics and the empirical term: a
+        // structured residual is spread, not outlying
+        let (empirical, left) = hybrid::fit(rec, e, &self.held, huber_mm);
+        let (outliers, outlier_threshold_mm) = outlier_rows(&left);
         let inliers = inlier_figures(e, &self.held, &outliers);
+        let explained = inliers.heldout_rms_mm <= NOISE_TOLERANCE * noise.rms_mm;
         let fit_mask: Vec<bool> = self.held.iter().map(|h| !h).collect();
-        let unexplained = leftover(rec, &final_, &inliers, &outliers, &noise, || {
-            where_left(&fit_mask)
-        });
+        let unexplained = leftover(
+            rec,
+            &final_,
+            &inliers,
+            &outliers,
+            outlier_threshold_mm,
+            &noise,
+            explained,
+            || where_left(&fit_mask),
+        );
         Diagnosis {
             report: Report {
                 baseline: self.baseline,
                 findings,
                 final_,
+                explained,
                 unexplained,
+                empirical: (!explained).then_some(empirical),
                 noise,
                 split: Split {
                     method: self.split_method,
@@ -118,6 +133,8 @@ impl Start {
                 tried,
                 failed_rows,
                 outlier_lines: outliers.iter().map(|&r| rec.rows[r].line).collect(),
+                outlier_rule: outlier_rule(),
+                outlier_threshold_mm,
                 final_inliers: inliers,
             },
             fitted,

@@ -23,7 +23,7 @@ use common::{print_trials, robot, shared};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_core::Model;
-use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec};
+use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec, Unmodelled};
 use ctr_diagnosis::{diagnose, split, Options};
 use ctr_formats::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
@@ -33,6 +33,8 @@ use std::path::PathBuf;
 
 /// Tolerance on the held-out RMS after fitting, as a multiple of the noise floor.
 const FLOOR_TOLERANCE: f64 = 1.25;
+/// Largest share of rows without a planted outlier that may be flagged as outliers.
+const MAX_FALSE_OUTLIER_SHARE: f64 = 0.02;
 /// Tracker noise for the gravity cases, mm per axis (the sag is a fraction of a mm).
 const GRAVITY_NOISE_SIGMA_MM: f64 = 0.05;
 /// Rotation step of the rotation runs for three tubes, degrees (three rotation runs:
@@ -51,6 +53,9 @@ struct Case {
     seed: u64,
     noise_sigma_mm: f64,
     outlier_fraction: f64,
+    /// Effects outside the vocabulary: the report must not name them as any effect of
+    /// the vocabulary, and must say `explained: false`.
+    unmodelled: Vec<Unmodelled>,
 }
 
 impl Case {
@@ -63,7 +68,13 @@ impl Case {
             seed,
             noise_sigma_mm: SynthSpec::default().noise_sigma_mm,
             outlier_fraction: 0.0,
+            unmodelled: Vec::new(),
         }
+    }
+
+    fn unmodelled(mut self, u: Unmodelled) -> Self {
+        self.unmodelled.push(u);
+        self
     }
 
     fn effects(mut self, effects: Effects) -> Self {
@@ -121,6 +132,7 @@ fn synth_spec(case: &Case, n_tubes: usize) -> SynthSpec {
             default.walk_rows
         },
         file: format!("{}.csv", case.name),
+        unmodelled: case.unmodelled.clone(),
         ..default
     }
 }
@@ -186,9 +198,22 @@ fn run(case: Case) {
     } else {
         (sum / count as f64).sqrt()
     };
-    let ok = found == expected && final_heldout <= FLOOR_TOLERANCE * floor;
+    let outside = !case.unmodelled.is_empty();
+    let false_outliers = r
+        .outlier_lines
+        .iter()
+        .filter(|line| {
+            !gen.outlier_rows
+                .iter()
+                .any(|&row| rec.rows[row].line == **line)
+        })
+        .count();
+    let ok = found == expected
+        && r.explained != outside
+        && (outside || final_heldout <= FLOOR_TOLERANCE * floor)
+        && false_outliers as f64 <= MAX_FALSE_OUTLIER_SHARE * rec.rows.len() as f64;
     eprintln!(
-        "{} [{}] {}: truth {} {} -> found [{order}]; {} rows, {} outliers; effect {magnitude:.3} mm; \
+        "{} [{}] {}: truth {} {} {:?} -> found [{order}], explained {}; {} rows, {} outliers ({false_outliers} flagged not planted); effect {magnitude:.3} mm; \
          baseline held-out {:.3} -> final held-out {final_heldout:.3} (report {:.3}), floor {floor:.3} \
          (ratio {:.2}), noise est {:.3}; {:.1} s (generation {:.1} s)",
         if ok { "PASS" } else { "FAIL" },
@@ -196,6 +221,8 @@ fn run(case: Case) {
         case.robot,
         if case.torsion { "torsion +" } else { "" },
         serde_json::to_string(&case.effects).unwrap(),
+        case.unmodelled,
+        r.explained,
         rec.rows.len(),
         gen.outlier_rows.len(),
         r.baseline.heldout_rms_mm,
@@ -213,6 +240,15 @@ fn run(case: Case) {
         eprintln!("   {}", r.unexplained);
     }
     assert_eq!(found, expected, "{}: findings", case.name);
+    assert_eq!(r.explained, !outside, "{}: explained", case.name);
+    assert!(
+        false_outliers as f64 <= MAX_FALSE_OUTLIER_SHARE * rec.rows.len() as f64,
+        "{}: {false_outliers} rows flagged as outliers that were not planted",
+        case.name
+    );
+    if outside {
+        return;
+    }
     assert!(
         final_heldout <= FLOOR_TOLERANCE * floor,
         "{}: held-out RMS {final_heldout:.4} above {FLOOR_TOLERANCE} x floor {floor:.4}",
@@ -375,6 +411,33 @@ blind_tests! {
     outliers_latency_friction_nitinol3: "nitinol3", seed 53, outliers(0.01) {
         latency: Latency { tau_s: 0.25 },
         friction: friction(&[4.0, 4.0]),
+    };
+
+    // ---- effects outside the vocabulary, alone and with effects of it: the findings
+    // are only the in-vocabulary ones and `explained` is false ----
+    feed_gain_nitinol3: "nitinol3", seed 61,
+        unmodelled(Unmodelled::FeedGain { tube: 2, gain: 0.94 });
+    feed_gain_liu2023: "liu2023", seed 62,
+        unmodelled(Unmodelled::FeedGain { tube: 1, gain: 1.05 });
+    rotation_gain_nitinol2: "nitinol2", seed 63,
+        unmodelled(Unmodelled::RotationGain { tube: 1, gain: 1.06 });
+    gear_runout_nitinol3: "nitinol3", seed 64,
+        unmodelled(Unmodelled::GearRunout { tube: 0, amplitude_deg: 4.0, phase_deg: 30.0 });
+    tracker_drift_nitinol2: "nitinol2", seed 65,
+        unmodelled(Unmodelled::TrackerDrift { velocity_mm_s: [0.004, -0.003, 0.002] });
+    tracker_scale_liu2023: "liu2023", seed 66,
+        unmodelled(Unmodelled::TrackerScale { scale_error: [0.01, -0.008, 0.006] });
+    friction_drift_liu2023: "liu2023", seed 67,
+        unmodelled(Unmodelled::TrackerDrift { velocity_mm_s: [-0.003, 0.004, 0.0] }) {
+        friction: friction(&[6.0]),
+    };
+    latency_feed_gain_nitinol2: "nitinol2", seed 68,
+        unmodelled(Unmodelled::FeedGain { tube: 1, gain: 1.06 }) {
+        latency: Latency { tau_s: 0.5 },
+    };
+    registration_runout_nitinol2: "nitinol2", seed 69,
+        unmodelled(Unmodelled::GearRunout { tube: 1, amplitude_deg: 5.0, phase_deg: -60.0 }) {
+        registration: registration([0.5, -1.2, 0.4], [1.5, 2.0, -1.0]),
     };
 }
 

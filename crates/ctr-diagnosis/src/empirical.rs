@@ -1,0 +1,414 @@
+//! The generic empirical correction: what a data-driven term with no physics in it does
+//! with the same residual, as the yardstick every physical finding must beat.
+//!
+//! The correction is linear in a fixed, low-order basis of the row's features,
+//! standardised on the fit rows: a constant, each tube's feed `s_i`, one harmonic of
+//! each tube's rotation `theta_i` and of each relative rotation `theta_{i+1} - theta_i`,
+//! the recording time `t_s`, and the modelled tip position. A *term* is one basis
+//! function on one axis of the tip error with one coefficient, so a correction of `k`
+//! terms has `k` free parameters, as an effect with `k` parameters does.
+//!
+//! [`greedy`] picks the `k` terms by orthogonal matching pursuit on the fit rows (each
+//! step adds the term that lowers the weighted squared error most, then refits all
+//! terms of that axis by least squares). Rows are weighted by the Huber weight of their
+//! current error, `min(1, c / |e|)`, as the physical fits are, so tracker outliers do
+//! not steer it.
+
+use ctr_formats::Recording;
+use nalgebra::{DMatrix, DVector};
+
+/// One function of a row's features.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Feature {
+    /// 1.
+    Constant,
+    /// Tube `i`'s feed (0-based).
+    Feed(usize),
+    /// cos or sin (`sin` true) of tube `i`'s rotation.
+    Rotation(usize, bool),
+    /// cos or sin of `theta_{i+1} - theta_i` (`i` the outer tube of the pair).
+    Relative(usize, bool),
+    /// The recording time.
+    Time,
+    /// An axis of the modelled tip position.
+    Tip(usize),
+}
+
+impl Feature {
+    /// The basis for `n` tubes.
+    fn all(n: usize) -> Vec<Feature> {
+        let mut out = vec![Feature::Constant];
+        for i in 0..n {
+            out.push(Feature::Feed(i));
+            out.push(Feature::Rotation(i, false));
+            out.push(Feature::Rotation(i, true));
+        }
+        for i in 0..n.saturating_sub(1) {
+            out.push(Feature::Relative(i, false));
+            out.push(Feature::Relative(i, true));
+        }
+        out.push(Feature::Time);
+        out.extend((0..3).map(Feature::Tip));
+        out
+    }
+
+    /// The raw value at a row with joints `q` (file units), time `t_s` and modelled
+    /// tip `tip`.
+    fn raw(self, q: &[f64], t_s: f64, tip: &[f64; 3]) -> f64 {
+        let angle = |i: usize| q[2 * i + 1].to_radians();
+        let trig = |x: f64, sin: bool| if sin { x.sin() } else { x.cos() };
+        match self {
+            Feature::Constant => 1.0,
+            Feature::Feed(i) => q[2 * i],
+            Feature::Rotation(i, sin) => trig(angle(i), sin),
+            Feature::Relative(i, sin) => trig(angle(i + 1) - angle(i), sin),
+            Feature::Time => t_s,
+            Feature::Tip(a) => tip[a],
+        }
+    }
+
+    /// The feature's name in a report.
+    pub(crate) fn name(self) -> String {
+        match self {
+            Feature::Constant => "1".into(),
+            Feature::Feed(i) => format!("s{}", i + 1),
+            Feature::Rotation(i, sin) => {
+                format!("{}(theta{})", if sin { "sin" } else { "cos" }, i + 1)
+            }
+            Feature::Relative(i, sin) => format!(
+                "{}(theta{} - theta{})",
+                if sin { "sin" } else { "cos" },
+                i + 2,
+                i + 1
+            ),
+            Feature::Time => "t".into(),
+            Feature::Tip(a) => ["x", "y", "z"][a].into(),
+        }
+    }
+}
+
+/// The basis evaluated at every row, each feature but the constant standardised to
+/// zero mean and unit spread over the fit rows; features that do not vary there are
+/// left out.
+pub(crate) struct Basis {
+    /// The features kept.
+    pub(crate) features: Vec<Feature>,
+    /// Column `j` holds feature `j` at every row.
+    columns: Vec<Vec<f64>>,
+}
+
+impl Basis {
+    /// The basis of `rec`'s rows with modelled tips `tips`, standardised on `fit`.
+    pub(crate) fn new(rec: &Recording, tips: &[[f64; 3]], fit: &[bool]) -> Self {
+        let mut features = Vec::new();
+        let mut columns = Vec::new();
+        for f in Feature::all(rec.n_tubes) {
+            let mut col: Vec<f64> = rec
+                .rows
+                .iter()
+                .zip(tips)
+                .map(|(r, p)| f.raw(&r.q, r.t_s, p))
+                .collect();
+            if f != Feature::Constant {
+                let (mut n, mut mean) = (0.0, 0.0);
+                for (v, _) in col.iter().zip(fit).filter(|(_, m)| **m) {
+                    n += 1.0;
+                    mean += v;
+                }
+                mean /= n;
+                let var = col
+                    .iter()
+                    .zip(fit)
+                    .filter(|(_, m)| **m)
+                    .map(|(v, _)| (v - mean).powi(2))
+                    .sum::<f64>()
+                    / n;
+                if var.sqrt().is_nan() || var.sqrt() <= MIN_SPREAD {
+                    continue;
+                }
+                let sd = var.sqrt();
+                col.iter_mut().for_each(|v| *v = (*v - mean) / sd);
+            }
+            features.push(f);
+            columns.push(col);
+        }
+        Basis { features, columns }
+    }
+}
+
+/// Spread below which a feature counts as constant on the fit rows (its own units).
+const MIN_SPREAD: f64 = 1e-9;
+
+/// A fitted correction: terms `(feature index, axis, coefficient)`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Correction {
+    pub(crate) terms: Vec<(usize, usize, f64)>,
+}
+
+impl Correction {
+    /// The correction's value (to be subtracted from the error) at every row.
+    pub(crate) fn values(&self, basis: &Basis) -> Vec<[f64; 3]> {
+        let rows = basis.columns.first().map_or(0, Vec::len);
+        let mut out = vec![[0.0; 3]; rows];
+        for &(j, a, c) in &self.terms {
+            for (o, v) in out.iter_mut().zip(&basis.columns[j]) {
+                o[a] += c * v;
+            }
+        }
+        out
+    }
+
+    /// The errors `e` with the correction taken off.
+    pub(crate) fn apply(&self, basis: &Basis, e: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        self.values(basis)
+            .iter()
+            .zip(e)
+            .map(|(c, e)| [e[0] - c[0], e[1] - c[1], e[2] - c[2]])
+            .collect()
+    }
+}
+
+/// Huber weight of every row: `min(1, huber_mm / |e|)` on the fit rows, 0 elsewhere.
+pub(crate) fn weights(e: &[[f64; 3]], fit: &[bool], huber_mm: f64) -> Vec<f64> {
+    e.iter()
+        .zip(fit)
+        .map(|(v, m)| {
+            if !m {
+                return 0.0;
+            }
+            let size = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if size > huber_mm {
+                huber_mm / size
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+/// A vector field over the rows: one 3-vector per row.
+pub(crate) type Field = Vec<[f64; 3]>;
+
+/// Weighted least squares of `e` on the fields `chosen`: the coefficients and the
+/// weighted squared error left.
+fn lsq(fields: &[Field], chosen: &[usize], e: &[[f64; 3]], w: &[f64]) -> (Vec<f64>, f64) {
+    let k = chosen.len();
+    let mut xtx = DMatrix::<f64>::zeros(k, k);
+    let mut xty = DVector::<f64>::zeros(k);
+    let mut yty = 0.0;
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    for r in 0..e.len() {
+        if w[r] == 0.0 {
+            continue;
+        }
+        yty += w[r] * dot(&e[r], &e[r]);
+        for (i, &ci) in chosen.iter().enumerate() {
+            let fi = &fields[ci][r];
+            xty[i] += w[r] * dot(fi, &e[r]);
+            for (j, &cj) in chosen.iter().enumerate().skip(i) {
+                xtx[(i, j)] += w[r] * dot(fi, &fields[cj][r]);
+            }
+        }
+    }
+    for i in 0..k {
+        for j in 0..i {
+            xtx[(i, j)] = xtx[(j, i)];
+        }
+    }
+    let Some(beta) = xtx.cholesky().map(|c| c.solve(&xty)) else {
+        return (vec![0.0; k], yty);
+    };
+    let left = yty - beta.dot(&xty);
+    (beta.iter().copied().collect(), left.max(0.0))
+}
+
+/// The order in which orthogonal matching pursuit picks up to `k` of `fields` for the
+/// errors `e` with row weights `w` (zero: not fitted): each step takes the field whose
+/// part orthogonal to those already chosen lowers the weighted squared error most
+/// (Gram-Schmidt, so a step costs one pass over the candidates).
+pub(crate) fn path(fields: &[Field], e: &[[f64; 3]], w: &[f64], k: usize) -> Vec<usize> {
+    let flat = |f: &[[f64; 3]]| -> Vec<f64> {
+        f.iter()
+            .zip(w)
+            .flat_map(|(v, w)| {
+                let s = w.sqrt();
+                [s * v[0], s * v[1], s * v[2]]
+            })
+            .collect()
+    };
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut r = flat(e);
+    let mut cands: Vec<Vec<f64>> = fields.iter().map(|f| flat(f)).collect();
+    let norms0: Vec<f64> = cands.iter().map(|c| dot(c, c)).collect();
+    let mut chosen = Vec::new();
+    for _ in 0..k.min(fields.len()) {
+        let mut best: Option<(usize, f64)> = None;
+        for (j, c) in cands.iter().enumerate() {
+            let cc = dot(c, c);
+            // a field (nearly) in the span of those chosen adds nothing
+            if chosen.contains(&j) || cc.is_nan() || cc <= DEPENDENT * norms0[j] {
+                continue;
+            }
+            let gain = dot(c, &r).powi(2) / cc;
+            if best.is_none_or(|b| gain > b.1) {
+                best = Some((j, gain));
+            }
+        }
+        let Some((j, _)) = best else { break };
+        chosen.push(j);
+        let norm = dot(&cands[j], &cands[j]).sqrt();
+        let q: Vec<f64> = cands[j].iter().map(|v| v / norm).collect();
+        let qr = dot(&q, &r);
+        r.iter_mut().zip(&q).for_each(|(x, y)| *x -= qr * y);
+        for c in cands.iter_mut() {
+            let qc = dot(&q, c);
+            c.iter_mut().zip(&q).for_each(|(x, y)| *x -= qc * y);
+        }
+    }
+    chosen
+}
+
+/// Share of a field's own weighted norm squared below which what is left of it after
+/// the chosen fields counts as dependent on them.
+const DEPENDENT: f64 = 1e-10;
+
+/// The best `k` of `fields` for the errors `e` (row weights `w`) by [`path`], with
+/// their least-squares coefficients.
+pub(crate) fn pursue(fields: &[Field], e: &[[f64; 3]], w: &[f64], k: usize) -> Vec<(usize, f64)> {
+    let chosen = path(fields, e, w, k);
+    let (beta, _) = lsq(fields, &chosen, e, w);
+    chosen.into_iter().zip(beta).collect()
+}
+
+/// The least-squares coefficients of `chosen` for `e` (row weights `w`).
+pub(crate) fn coefficients(
+    fields: &[Field],
+    chosen: &[usize],
+    e: &[[f64; 3]],
+    w: &[f64],
+) -> Vec<(usize, f64)> {
+    let (beta, _) = lsq(fields, chosen, e, w);
+    chosen.iter().copied().zip(beta).collect()
+}
+
+/// `e` less the fields `terms` (field index, coefficient) of `fields`.
+pub(crate) fn subtract(fields: &[Field], terms: &[(usize, f64)], e: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let mut out = e.to_vec();
+    for &(j, c) in terms {
+        for (o, f) in out.iter_mut().zip(&fields[j]) {
+            for a in 0..3 {
+                o[a] -= c * f[a];
+            }
+        }
+    }
+    out
+}
+
+impl Basis {
+    /// Every term of the basis as a field: feature `j` on axis `a` at index `3 j + a`.
+    pub(crate) fn fields(&self) -> Vec<Field> {
+        let mut out = Vec::with_capacity(3 * self.columns.len());
+        for col in &self.columns {
+            for a in 0..3 {
+                out.push(
+                    col.iter()
+                        .map(|v| {
+                            let mut f = [0.0; 3];
+                            f[a] = *v;
+                            f
+                        })
+                        .collect(),
+                );
+            }
+        }
+        out
+    }
+
+    /// The non-constant features' columns (for coefficients that vary over the rows).
+    pub(crate) fn varying(&self) -> impl Iterator<Item = (Feature, &[f64])> {
+        self.features
+            .iter()
+            .zip(&self.columns)
+            .filter(|(f, _)| **f != Feature::Constant)
+            .map(|(f, c)| (*f, c.as_slice()))
+    }
+}
+
+/// The best correction of `k` terms for the errors `e` (row weights `w`).
+pub(crate) fn greedy(basis: &Basis, e: &[[f64; 3]], w: &[f64], k: usize) -> Correction {
+    let terms = pursue(&basis.fields(), e, w, k)
+        .into_iter()
+        .map(|(i, c)| (i / 3, i % 3, c))
+        .collect();
+    Correction { terms }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ctr_formats::{RecordedRow, Run};
+
+    fn recording(rows: usize) -> Recording {
+        let rows: Vec<RecordedRow> = (0..rows)
+            .map(|k| {
+                let x = k as f64;
+                RecordedRow {
+                    line: k + 2,
+                    t_s: 0.1 * x,
+                    run: 0,
+                    q: vec![
+                        10.0 + (0.37 * x).sin() * 5.0,
+                        7.0 * x,
+                        40.0 + (0.11 * x).cos(),
+                        3.0 * x,
+                    ],
+                    p: [0.0; 3],
+                    quaternion: None,
+                    force_n: [0.0; 3],
+                }
+            })
+            .collect();
+        Recording {
+            file: "test.csv".into(),
+            n_tubes: 2,
+            has_time: true,
+            has_force: false,
+            runs: vec![Run {
+                label: "a".into(),
+                rows: 0..rows.len(),
+            }],
+            rows,
+        }
+    }
+
+    /// An error made of two basis terms is found with two terms and removed exactly;
+    /// with one term, the larger is found.
+    #[test]
+    fn matching_pursuit_finds_the_terms_an_error_is_made_of() {
+        let rec = recording(300);
+        let tips = vec![[0.0; 3]; 300];
+        let fit = vec![true; 300];
+        let basis = Basis::new(&rec, &tips, &fit);
+        let t = basis
+            .features
+            .iter()
+            .position(|f| *f == Feature::Time)
+            .unwrap();
+        let s = basis
+            .features
+            .iter()
+            .position(|f| *f == Feature::Feed(1))
+            .unwrap();
+        let e: Vec<[f64; 3]> = (0..300)
+            .map(|r| [0.0, 2.0 * basis.columns[t][r], -0.5 * basis.columns[s][r]])
+            .collect();
+        let w = vec![1.0; 300];
+        let two = greedy(&basis, &e, &w, 2);
+        let left = two.apply(&basis, &e);
+        assert!(left.iter().flatten().all(|v| v.abs() < 1e-9));
+        let one = greedy(&basis, &e, &w, 1);
+        assert_eq!(one.terms.len(), 1);
+        assert_eq!((one.terms[0].0, one.terms[0].1), (t, 1));
+        assert!((one.terms[0].2 - 2.0).abs() < 1e-9);
+    }
+}
