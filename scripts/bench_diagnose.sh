@@ -8,17 +8,20 @@
 # recording on 2 threads. Target: a 1,000-row recording in <= 5 s on 2 cores. Without
 # arguments it runs the shared recordings (../shared/data/recordings) with their robots
 # and the bundled example (data/examples/liu2023-recording.csv).
-# Environment: RUNS (default 3).
+# Environment: RUNS (default 3); CLI (a ctr-cli binary to time instead of building
+# this tree's, e.g. an older build for a before/after comparison).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RUNS=${RUNS:-3}
-cargo build --release -p ctr-cli 2>&1 | tail -n 1 >&2
-CLI=$PWD/target/release/ctr-cli
+if [ -z "${CLI:-}" ]; then
+    cargo build --release -p ctr-cli 2>&1 | tail -n 1 >&2
+    CLI=$PWD/target/release/ctr-cli
+fi
 
 pairs=("$@")
 if [ ${#pairs[@]} -eq 0 ]; then
     S=../shared/data
-    for id in clean clearance friction gravity latency registration; do
+    for id in clean clearance friction gravity latency registration unexplained-feed-gain unexplained-drift; do
         f=$S/recordings/dev-$id.csv
         [ -f "$f" ] || continue
         robot=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['robot_file'].replace('shared/data/', ''))" "$S/recordings/dev-$id.truth.json")

@@ -35,8 +35,8 @@ pub(crate) enum Feature {
 }
 
 impl Feature {
-    /// The basis for `n` tubes.
-    fn all(n: usize) -> Vec<Feature> {
+    /// The basis for `n` tubes (with the modelled tip position where `tip`).
+    fn all(n: usize, tip: bool) -> Vec<Feature> {
         let mut out = vec![Feature::Constant];
         for i in 0..n {
             out.push(Feature::Feed(i));
@@ -48,7 +48,9 @@ impl Feature {
             out.push(Feature::Relative(i, true));
         }
         out.push(Feature::Time);
-        out.extend((0..3).map(Feature::Tip));
+        if tip {
+            out.extend((0..3).map(Feature::Tip));
+        }
         out
     }
 
@@ -100,9 +102,41 @@ pub(crate) struct Basis {
 impl Basis {
     /// The basis of `rec`'s rows with modelled tips `tips`, standardised on `fit`.
     pub(crate) fn new(rec: &Recording, tips: &[[f64; 3]], fit: &[bool]) -> Self {
+        Self::with(rec, tips, fit, true)
+    }
+
+    /// The basis in the joints and time only, without the tip position: the yardstick
+    /// of a finding, so that an effect that is itself a map of the tip position (the
+    /// registration) is not measured against its own functional form.
+    pub(crate) fn joints_and_time(rec: &Recording, fit: &[bool]) -> Self {
+        Self::with(rec, &vec![[0.0; 3]; rec.rows.len()], fit, false)
+    }
+
+    /// The non-constant features of the full basis in their own units, not centred:
+    /// a coefficient times such a feature is proportional to it (zero where it is
+    /// zero), as a gain is.
+    pub(crate) fn raw(rec: &Recording, tips: &[[f64; 3]]) -> Self {
+        let features: Vec<Feature> = Feature::all(rec.n_tubes, true)
+            .into_iter()
+            .filter(|f| *f != Feature::Constant)
+            .collect();
+        let columns = features
+            .iter()
+            .map(|f| {
+                rec.rows
+                    .iter()
+                    .zip(tips)
+                    .map(|(r, p)| f.raw(&r.q, r.t_s, p))
+                    .collect()
+            })
+            .collect();
+        Basis { features, columns }
+    }
+
+    fn with(rec: &Recording, tips: &[[f64; 3]], fit: &[bool], tip: bool) -> Self {
         let mut features = Vec::new();
         let mut columns = Vec::new();
-        for f in Feature::all(rec.n_tubes) {
+        for f in Feature::all(rec.n_tubes, tip) {
             let mut col: Vec<f64> = rec
                 .rows
                 .iter()

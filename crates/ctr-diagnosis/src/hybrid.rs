@@ -11,9 +11,9 @@
 //! the term is the honest figure of what it adds.
 
 use crate::empirical::{self, Basis, Field};
+use crate::report::{Empirical, Term};
 use crate::residual::figures;
 use ctr_formats::Recording;
-use serde::Serialize;
 
 /// Folds of the cross-validation.
 pub const FOLDS: usize = 5;
@@ -25,35 +25,6 @@ const FOLD_BLOCK_ROWS: usize = 10;
 const SIZES: [usize; 11] = [0, 1, 2, 3, 4, 6, 8, 10, 14, 18, 24];
 /// Dominant terms the report lists.
 const DOMINANT_TERMS: usize = 5;
-
-/// One term of the empirical correction, as the report lists it.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Term {
-    /// The basis function (`t`, `s2`, `cos(theta1)`, `x`, ... standardised over the
-    /// fit rows).
-    pub feature: String,
-    /// The axis of the tip error it corrects (`x`, `y` or `z`).
-    pub axis: String,
-    /// Its coefficient, mm per standard deviation of the feature.
-    pub coefficient_mm: f64,
-    /// RMS of its contribution over the rows, mm.
-    pub rms_mm: f64,
-}
-
-/// The empirical correction fitted on top of the physical model.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Empirical {
-    /// What it is, in words.
-    pub method: String,
-    /// Number of terms chosen by cross-validation on the fit rows.
-    pub terms: usize,
-    /// RMS over the fit rows with the correction, mm.
-    pub rms_mm: f64,
-    /// RMS over the held-out rows with the correction, mm.
-    pub heldout_rms_mm: f64,
-    /// The largest terms by contribution, largest first.
-    pub dominant: Vec<Term>,
-}
 
 /// The empirical term fitted to the physical model's errors `e` (held-out rows
 /// `held`, robust weights from `huber_mm`), and the errors it leaves on every row.

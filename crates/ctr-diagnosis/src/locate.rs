@@ -54,6 +54,11 @@ fn features(rec: &Recording) -> Vec<Feature> {
             });
         }
     }
+    out.push(Feature {
+        name: "time t_s".into(),
+        values: rec.rows.iter().map(|r| r.t_s).collect(),
+        periodic: false,
+    });
     for i in 0..n {
         out.push(Feature {
             name: format!("theta{}", i + 1),
@@ -355,4 +360,37 @@ pub fn summary(statements: &[Statement]) -> String {
         out += &p.text;
     }
     out
+}
+
+/// What produces a pattern of error outside the contract's vocabulary, in words an
+/// engineer acts on (for what no effect explains).
+pub fn causes(s: &Statement) -> Option<String> {
+    let f = &s.feature;
+    let own_rotation = f.starts_with("theta") && !f.contains(" - ");
+    Some(match s.kind.as_str() {
+        "periodic" if own_rotation => format!(
+            "an error once per turn of {f}'s own drive: gear or encoder runout, an \
+             eccentric coupling, or a gear ratio that is off (check that rotation's drive)"
+        ),
+        "periodic" => format!(
+            "an error that follows the relative rotation {f}: a tube's precurvature that is \
+             not planar or not uniform, or anisotropic bending, neither in the model"
+        ),
+        "grows_with" if f == "time t_s" => "a drift in time: the tracker's frame creeping, \
+             thermal expansion, or a mount that slips (check the tracker's reference)"
+            .into(),
+        "grows_with" => format!(
+            "an error that grows with {f}: a wrong lead-screw pitch (feed gain) or a length \
+             that is off on that feed (check its drive's calibration)"
+        ),
+        "workspace" => "an error linear in the tip position: a tracker scale or calibration \
+             error (a registration is rigid and cannot take it)"
+            .into(),
+        "direction" => format!(
+            "an error that opens when {f} reverses: backlash or friction beyond the play \
+             model"
+        ),
+        "offset" => "a constant offset: a mounting or tracker offset".into(),
+        _ => return None,
+    })
 }

@@ -53,13 +53,14 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// The tracker outliers of a final residual `e`: the rows farther than
-/// [`OUTLIER_SIGMAS`] robust standard deviations from the residual's median, the
-/// deviation taken per axis from the residual's own median absolute deviation (not
-/// from the noise estimate: a structured residual that is left is spread, not
-/// outlying). The rows, ascending, and the threshold, mm (infinite when the spread
-/// cannot be estimated).
-pub(crate) fn outlier_rows(e: &[[f64; 3]]) -> (Vec<usize>, f64) {
+/// The tracker outliers of a final residual `e` (rows of `rec`): the rows farther than
+/// [`OUTLIER_SIGMAS`] robust standard deviations both from the residual's median and
+/// from the median of their neighbours in the run ([`NEIGHBOURS`] on each side). The
+/// deviation is taken per axis from the residual's own median absolute deviation, not
+/// from the noise estimate; and a row that moves with its neighbours is structure that
+/// is left, not a tracker's jump. The rows, ascending, and the threshold, mm (infinite
+/// when the spread cannot be estimated).
+pub(crate) fn outlier_rows(rec: &Recording, e: &[[f64; 3]]) -> (Vec<usize>, f64) {
     if e.len() < MIN_ROWS_FOR_OUTLIERS {
         return (Vec::new(), f64::INFINITY);
     }
@@ -75,17 +76,36 @@ pub(crate) fn outlier_rows(e: &[[f64; 3]]) -> (Vec<usize>, f64) {
     if limit.is_nan() || limit <= 0.0 {
         return (Vec::new(), f64::INFINITY);
     }
-    let rows = e
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| {
-            let d: f64 = (0..3).map(|a| (v[a] - centre[a]).powi(2)).sum();
-            d.sqrt() > limit
-        })
-        .map(|(r, _)| r)
-        .collect();
+    let dist = |v: &[f64; 3], c: &[f64; 3]| -> f64 {
+        (0..3).map(|a| (v[a] - c[a]).powi(2)).sum::<f64>().sqrt()
+    };
+    let mut rows = Vec::new();
+    for run in &rec.runs {
+        for r in run.rows.clone() {
+            if dist(&e[r], &centre) <= limit {
+                continue;
+            }
+            let lo = r.saturating_sub(NEIGHBOURS).max(run.rows.start);
+            let hi = (r + NEIGHBOURS + 1).min(run.rows.end);
+            let near: Vec<usize> = (lo..hi).filter(|&k| k != r).collect();
+            let local = if near.is_empty() {
+                centre
+            } else {
+                std::array::from_fn(|a| {
+                    median(&mut near.iter().map(|&k| e[k][a]).collect::<Vec<_>>())
+                })
+            };
+            if dist(&e[r], &local) > limit {
+                rows.push(r);
+            }
+        }
+    }
+    rows.sort_unstable();
     (rows, limit)
 }
+
+/// Neighbours on each side of a row that its error is compared with.
+pub const NEIGHBOURS: usize = 2;
 
 /// Fewest rows for a robust spread.
 const MIN_ROWS_FOR_OUTLIERS: usize = 9;
@@ -93,8 +113,10 @@ const MIN_ROWS_FOR_OUTLIERS: usize = 9;
 /// The outlier rule in words, for the report.
 pub(crate) fn outlier_rule() -> String {
     format!(
-        "a row is a tracker outlier when its final error lies more than {OUTLIER_SIGMAS} robust \
-         standard deviations from the residual's median (per axis, {MAD_TO_SIGMA} x the median \
-         absolute deviation of the final residual)"
+        "a row is a tracker outlier when its final error (after the physics and the empirical \
+         term) lies more than {OUTLIER_SIGMAS} robust standard deviations (per axis, \
+         {MAD_TO_SIGMA} x the median absolute deviation of that residual) both from the \
+         residual's median and from the median of its {NEIGHBOURS} neighbours on each side \
+         in its run"
     )
 }

@@ -2,7 +2,6 @@
 //! `shared/spec/formats.md`) and its plain-language summary.
 
 use crate::candidates::EffectId;
-use crate::hybrid::Empirical;
 use crate::locate::Statement;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::RobotSpec;
@@ -17,6 +16,35 @@ pub struct Figures {
     pub max_mm: f64,
     /// RMS tip error over the held-out rows.
     pub heldout_rms_mm: f64,
+}
+
+/// One term of the empirical correction, as the report lists it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Term {
+    /// The basis function (`t`, `s2`, `cos(theta1)`, `x`, ... standardised over the
+    /// fit rows).
+    pub feature: String,
+    /// The axis of the tip error it corrects (`x`, `y` or `z`).
+    pub axis: String,
+    /// Its coefficient, mm per standard deviation of the feature.
+    pub coefficient_mm: f64,
+    /// RMS of its contribution over the rows, mm.
+    pub rms_mm: f64,
+}
+
+/// The empirical correction fitted on top of the physical model.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Empirical {
+    /// What it is, in words.
+    pub method: String,
+    /// Number of terms chosen by cross-validation on the fit rows.
+    pub terms: usize,
+    /// RMS over the fit rows with the correction, mm.
+    pub rms_mm: f64,
+    /// RMS over the held-out rows with the correction, mm.
+    pub heldout_rms_mm: f64,
+    /// The largest terms by contribution, largest first.
+    pub dominant: Vec<Term>,
 }
 
 /// One effect the diagnosis found.
@@ -129,6 +157,9 @@ pub struct Report {
     pub final_inliers: Figures,
 }
 
+/// How the note of a finding taken out after the search starts.
+pub(crate) const REMOVED: &str = "removed after the search: ";
+
 /// A diagnosis: the report and the fitted model.
 #[derive(Clone, Debug)]
 pub struct Diagnosis {
@@ -178,11 +209,35 @@ impl Report {
                 f.rms_mm_after
             );
         }
+        for t in self.tried.iter().filter(|t| t.note.starts_with(REMOVED)) {
+            s += &format!(
+                "Not physics: {} ({}).\n",
+                t.effect.as_str(),
+                &t.note[REMOVED.len()..]
+            );
+        }
         s += &format!(
             "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
             self.final_.rms_mm, self.final_.heldout_rms_mm, self.unexplained
         );
+        if let Some(emp) = &self.empirical {
+            let terms: Vec<String> = self
+                .dominant_terms()
+                .map(|t| format!("{} on {} ({:.2} mm)", t.feature, t.axis, t.rms_mm))
+                .collect();
+            s += &format!(
+                "An empirical term (not physics, {} terms chosen by cross-validation on the \
+                 fit rows) leaves {:.3} mm held out; its largest terms: {}.\n",
+                emp.terms,
+                emp.heldout_rms_mm,
+                terms.join(", ")
+            );
+        }
         s
+    }
+
+    fn dominant_terms(&self) -> impl Iterator<Item = &Term> {
+        self.empirical.iter().flat_map(|e| e.dominant.iter())
     }
 }
 

@@ -8,7 +8,7 @@ use crate::fit::{Problem, MAX_FIT_ITERATIONS};
 use crate::locate;
 use crate::options::Options;
 use crate::prose::{explain, parameters};
-use crate::report::{Diagnosis, Figures, Finding, Trial};
+use crate::report::{Diagnosis, Figures, Finding, Trial, REMOVED};
 use crate::residual::{errors, figures};
 use crate::start::{sample_period, Start};
 use crate::verify;
@@ -317,7 +317,18 @@ pub fn diagnose(
         &current_e,
         tried,
         final_pred.failed,
-        |fit_mask| locate::summary(&locate::locate(rec, &current_e, fit_mask, &final_pred.p)),
+        |fit_mask| {
+            let statements = locate::locate(rec, &current_e, fit_mask, &final_pred.p);
+            let mut out = locate::summary(&statements);
+            if let Some(c) = statements
+                .iter()
+                .find(|s| s.kind != "run")
+                .and_then(locate::causes)
+            {
+                out += &format!(". Outside the vocabulary, this pattern comes from {c}");
+            }
+            out
+        },
     ))
 }
 
@@ -325,16 +336,17 @@ pub fn diagnose(
 fn removed_note(ch: &verify::Checked) -> String {
     match &ch.failure {
         Some(verify::Failure::Empirical { heldout_rms_mm }) => format!(
-            "removed after the search: a generic empirical correction of as many parameters, \
+            "{REMOVED}a generic empirical correction of as many parameters, \
              in its place, does as well on held-out rows ({heldout_rms_mm:.3} mm)"
         ),
         Some(verify::Failure::Varying {
             feature,
+            constant_heldout_rms_mm,
             heldout_rms_mm,
         }) => format!(
-            "removed after the search: its parameters are not constant but vary with \
-             {feature} (with them varying, {heldout_rms_mm:.3} mm held out): it stands in for \
-             something outside the vocabulary"
+            "{REMOVED}its parameters fit the data better proportional to \
+             {feature} than constant ({heldout_rms_mm:.3} against {constant_heldout_rms_mm:.3} \
+             mm held out, linearised): it stands in for a gain or drift outside the vocabulary"
         ),
         None => String::new(),
     }

@@ -6,22 +6,25 @@
 //! its held-out RMS; `sigma_n` the noise estimate's RMS. For a finding `c` with `k`
 //! parameters:
 //!
-//! 1. **It beats a generic correction of its size** ([`empirical`]). Take `c` out of
+//! 1. **It beats a generic correction of its size** ([`empirical`]: in the joints and
+//!    time, so that the registration, itself a map of the tip position, is not measured
+//!    against its own form). Take `c` out of
 //!    `M` (the others stay as fitted); fit the best `k`-term empirical correction to
 //!    that model's error on the fit rows; its held-out RMS `h_emp` must be clearly
 //!    above `h`: `h < (1 - MIN_GAIN_OVER_EMPIRICAL) h_emp`. Where `M` leaves nothing
 //!    but noise on the held-out rows (`h <= NOISE_TOLERANCE sigma_n`) the check passes:
 //!    both then explain everything, and the physics is the hypothesis.
-//! 2. **Its signature is gone from what it leaves.** An effect claims a fixed set of
-//!    parameters: its error is `J_c(q) dx` with `J_c` the derivative of the tip
-//!    with respect to its parameters and `dx` constant over the rows. If the residual
-//!    still holds `J_c(q) dx(q)` with `dx` varying with a feature of the rows (a joint,
-//!    time, the tip position: [`empirical::Basis`]), the effect stands in for something
-//!    else (a feed *offset* where the feed *gain* is wrong). The `k` most useful
-//!    fields `J_c,j(q) phi_m(q)` are picked on the fit rows; the check fails when,
-//!    on the held-out rows, they remove at least [`MAX_SIGNATURE_SHARE`] of what `M`
-//!    leaves above the noise and clearly more than the generic correction of as many
-//!    terms does on the same residual.
+//! 2. **Its parameters are constant, not proportional to something.** An effect
+//!    claims a fixed set of parameters: its error is `J_c(q) dx` with `J_c` the
+//!    derivative of the tip with respect to its parameters and `dx` constant over the
+//!    rows. With `c` taken out of `M`, compare two linear fits of that error on the
+//!    fit rows, each with `k` terms: the constant `J_c,j(q)` columns, and the best `k`
+//!    of the fields `J_c,j(q) f(q)` with `f` a feature of the rows in its own units
+//!    (a feed, a rotation's cosine, the time, the tip position: [`Basis::raw`]), which
+//!    vanish where the feature does, as a gain's error does. If the proportional
+//!    fields do clearly better on the held-out rows, the effect is the shadow of a gain
+//!    or a drift on its own directions (a feed *offset* where the feed *gain* is
+//!    wrong, a registration where the tracker's scale is): outside the vocabulary.
 //!
 //! A finding that fails is taken out, the others are refitted together, and the checks
 //! run again until every finding passes.
@@ -39,9 +42,6 @@ use ctr_formats::Recording;
 /// the generic empirical correction with as many free parameters, with the finding
 /// taken out, for the finding to count as physics.
 pub const MIN_GAIN_OVER_EMPIRICAL: f64 = 0.02;
-/// Largest share of the residual's excess over the noise (held-out, squared) that the
-/// finding's own signature with varying parameters may still explain.
-pub const MAX_SIGNATURE_SHARE: f64 = 0.5;
 
 /// What the checks run on.
 pub(crate) struct Context<'a> {
@@ -64,11 +64,13 @@ pub(crate) enum Failure {
         /// Its held-out RMS, mm.
         heldout_rms_mm: f64,
     },
-    /// The effect's parameters vary with a feature of the rows.
+    /// The effect's parameters are better proportional to a feature of the rows.
     Varying {
-        /// The feature they vary with most.
+        /// The feature they are proportional to (the first chosen).
         feature: String,
-        /// Held-out RMS with the varying parameters, mm.
+        /// Held-out RMS of the constant parameters (linearised), mm.
+        constant_heldout_rms_mm: f64,
+        /// Held-out RMS of the proportional ones, mm.
         heldout_rms_mm: f64,
     },
 }
@@ -104,10 +106,11 @@ impl Context<'_> {
             .collect()
     }
 
-    /// Held-out RMS of `e` after the best `k`-term generic correction fitted to it.
+    /// Held-out RMS of `e` after the best `k`-term generic correction in the joints
+    /// and time fitted to it.
     fn empirical_heldout(&self, e: &[[f64; 3]], k: usize) -> f64 {
         let fit = self.fit_mask();
-        let basis = Basis::new(self.rec, &self.tips(e), &fit);
+        let basis = Basis::joints_and_time(self.rec, &fit);
         let w = empirical::weights(e, &fit, self.huber_mm);
         let left = empirical::greedy(&basis, e, &w, k).apply(&basis, e);
         figures(&left, self.held).heldout_rms_mm
@@ -139,33 +142,32 @@ impl Context<'_> {
                 });
                 return out;
             }
-        }
-        if at_noise {
-            return out;
-        }
-        // 2. its own signature, with parameters that vary over the rows
-        if let Some((feature, h_vc)) = self.varying_signature(m, e, c) {
-            let excess = h * h - self.noise_rms_mm * self.noise_rms_mm;
-            let share = (h * h - h_vc * h_vc) / excess.max(f64::MIN_POSITIVE);
-            let h_gen = self.empirical_heldout(e, k);
-            if share >= MAX_SIGNATURE_SHARE && h_vc < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_gen {
-                out.failure = Some(Failure::Varying {
-                    feature,
-                    heldout_rms_mm: h_vc,
-                });
+            if at_noise {
+                return out;
+            }
+            // 2. constant parameters against parameters proportional to a feature
+            if let Some((feature, h_const, h_prop)) = self.proportional(m, &e_without, c) {
+                if h_prop < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_const {
+                    out.failure = Some(Failure::Varying {
+                        feature,
+                        constant_heldout_rms_mm: h_const,
+                        heldout_rms_mm: h_prop,
+                    });
+                }
             }
         }
         out
     }
 
-    /// The held-out RMS of `e` after the best `k` fields `J_c,j phi_m` (the effect's
-    /// parameter directions times a varying feature), and the feature chosen first.
-    fn varying_signature(
+    /// With `c` taken out (its error `e`): the held-out RMS of the linear fit of the
+    /// `k` constant parameter directions `J_c,j`, and of the best `k` proportional
+    /// fields `J_c,j f`, with the feature chosen first.
+    fn proportional(
         &self,
         m: &ModelSpec,
         e: &[[f64; 3]],
         c: EffectId,
-    ) -> Option<(String, f64)> {
+    ) -> Option<(String, f64, f64)> {
         let rows = self.rec.rows.len();
         let problem = Problem {
             base: m.clone(),
@@ -180,27 +182,33 @@ impl Context<'_> {
         let x = c.read(m);
         let p0 = problem.predictions(&x)?;
         let jac = problem.jacobian(&x, &p0)?;
-        let fit = self.fit_mask();
-        let basis = Basis::new(self.rec, &self.tips(e), &fit);
+        let k = jac.ncols();
+        let direction =
+            |j: usize, r: usize| [jac[(3 * r, j)], jac[(3 * r + 1, j)], jac[(3 * r + 2, j)]];
+        let constant: Vec<Field> = (0..k)
+            .map(|j| (0..rows).map(|r| direction(j, r)).collect())
+            .collect();
+        let basis = Basis::raw(self.rec, &self.tips(e));
         let mut fields: Vec<Field> = Vec::new();
         let mut names = Vec::new();
-        for j in 0..jac.ncols() {
+        for j in 0..k {
             for (feature, col) in basis.varying() {
                 fields.push(
                     (0..rows)
-                        .map(|r| {
-                            let d = |a: usize| jac[(3 * r + a, j)] * col[r];
-                            [d(0), d(1), d(2)]
-                        })
+                        .map(|r| direction(j, r).map(|d| d * col[r]))
                         .collect(),
                 );
                 names.push(feature.name());
             }
         }
-        let w = empirical::weights(e, &fit, self.huber_mm);
-        let terms = empirical::pursue(&fields, e, &w, c.n_params(m.robot.n_tubes()));
+        let w = empirical::weights(e, &self.fit_mask(), self.huber_mm);
+        let heldout = |fields: &[Field], terms: &[(usize, f64)]| {
+            figures(&empirical::subtract(fields, terms, e), self.held).heldout_rms_mm
+        };
+        let all: Vec<usize> = (0..k).collect();
+        let h_const = heldout(&constant, &empirical::coefficients(&constant, &all, e, &w));
+        let terms = empirical::pursue(&fields, e, &w, k);
         let first = terms.first().map(|&(i, _)| names[i].clone())?;
-        let left = empirical::subtract(&fields, &terms, e);
-        Some((first, figures(&left, self.held).heldout_rms_mm))
+        Some((first, h_const, heldout(&fields, &terms)))
     }
 }

@@ -319,6 +319,23 @@ impl Report {
     fn failed_rows<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         self.item(py, "failed_rows")
     }
+
+    /// `explained`: the verdict, true when what is left is consistent with the noise.
+    #[getter]
+    fn explained<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "explained")
+    }
+
+    /// `empirical`: the labelled empirical correction, or `None` when explained.
+    #[getter]
+    fn empirical<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match self.item(py, "empirical") {
+            Err(e) if e.is_instance_of::<pyo3::exceptions::PyKeyError>(py) => {
+                Ok(py.None().into_bound(py))
+            }
+            other => other,
+        }
+    }
 }
 
 /// Runs `fit` (a diagnosis or calibration) on the robot's model and the recording with

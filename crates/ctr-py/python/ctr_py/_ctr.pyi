@@ -363,12 +363,15 @@ Finding = TypedDict(
         "rms_mm_after": float,
         "heldout_rms_mm_before": float,
         "heldout_rms_mm_after": float,
+        "empirical_heldout_rms_mm": Optional[float],
     },
 )
 """One effect found (typing only: a dict at run time): its id, what the model leaves
 out in words with the fitted values, where it shows, its fitted parameters as the
-robot file's ``[model.effects.<id>]`` table writes them, and the fit-row and held-out
-RMS before and after adding it, mm."""
+robot file's ``[model.effects.<id>]`` table writes them, the fit-row and held-out
+RMS before and after adding it, mm, and the held-out RMS of the generic empirical
+correction of as many parameters in its place (the yardstick it beat; ``None`` for
+torsion and for :func:`calibrate`)."""
 
 class Noise(TypedDict):
     """The noise estimated from the data (typing only)."""
@@ -480,6 +483,17 @@ class Report:
     @property
     def failed_rows(self) -> int:
         """Rows whose solve did not converge under the fitted model."""
+    @property
+    def explained(self) -> bool:
+        """The verdict: ``True`` when the held-out residual with the found physics
+        (tracker outliers set aside) is consistent with the noise estimate; ``False``
+        when a part is left that no effect of the vocabulary accounts for
+        (:attr:`unexplained` says where, :attr:`empirical` fits it)."""
+    @property
+    def empirical(self) -> Optional[dict[str, Any]]:
+        """The labelled empirical correction fitted on top of the physics for what is
+        left (``method``, ``terms``, ``rms_mm``, ``heldout_rms_mm``, ``dominant``), or
+        ``None`` when the recording is explained. Not physics."""
     def __eq__(self, other: object) -> bool: ...
     def __reduce__(self) -> tuple[object, tuple[str, str, Robot, str]]: ...
 
