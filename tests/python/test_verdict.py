@@ -1,0 +1,61 @@
+"""The diagnosis's verdict through ctr_py, on the bundled example only (no shared data):
+the example is explained; the same recording with a tracker that creeps in time is not,
+and the report places the rest in time and fits a labelled empirical term for it."""
+
+import csv
+
+import pytest
+
+import ctr_py
+from conftest import REPO
+
+ROBOT = REPO / "data" / "robots" / "liu2023.toml"
+EXAMPLE = REPO / "data" / "examples" / "liu2023-recording.csv"
+# a tracker frame that creeps, mm/s per axis: about 2 mm over the recording
+DRIFT_MM_S = (0.004, -0.003, 0.0)
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return ctr_py.Robot.from_toml(ROBOT)
+
+
+@pytest.fixture(scope="module")
+def drifted(tmp_path_factory):
+    path = tmp_path_factory.mktemp("verdict") / "drifted.csv"
+    with open(EXAMPLE, newline="") as f, open(path, "w", newline="") as out:
+        rows = csv.DictReader(f)
+        w = csv.DictWriter(out, fieldnames=rows.fieldnames)
+        w.writeheader()
+        for r in rows:
+            t = float(r["t_s"])
+            for axis, v in zip(("x_mm", "y_mm", "z_mm"), DRIFT_MM_S):
+                r[axis] = repr(float(r[axis]) + v * t)
+            w.writerow(r)
+    return path
+
+
+def test_the_example_is_explained(robot):
+    report = ctr_py.diagnose(robot, ctr_py.read_recording(EXAMPLE, robot))
+    assert report.explained is True
+    assert report.empirical is None and "empirical" not in report.to_dict()
+    assert report.summary().splitlines()[0].split(": ")[1:3] == ["explained", "yes"]
+
+
+def test_a_drifting_tracker_is_not_explained_and_is_placed_in_time(robot, drifted):
+    report = ctr_py.diagnose(robot, ctr_py.read_recording(drifted, robot))
+    d = report.to_dict()
+    assert report.explained is False and d["explained"] is False
+    assert report.summary().splitlines()[0].split(": ")[1:3] == ["explained", "no"]
+    # no effect of the vocabulary is named for the drift: whatever is found is one of
+    # the example's own (latency, clearance)
+    assert set(report.effects) <= {"latency", "clearance"}
+    # the time is among the located patterns, and the rest is said to be outside
+    assert any(s["feature"] == "time t_s" for s in report.located)
+    assert "Outside the vocabulary" in report.unexplained
+    emp = report.empirical
+    assert emp is not None and emp == d["empirical"]
+    assert 0 < emp["terms"] and emp["heldout_rms_mm"] < report.final["heldout_rms_mm"]
+    assert any(t["feature"] == "t" for t in emp["dominant"])
+    # outliers only where the tracker jumps: none here beyond 2 % of the rows
+    assert len(d["outlier_lines"]) <= 0.02 * d["split"]["fit_rows"]
