@@ -44,8 +44,17 @@ impl Default for BatchOptions {
 pub enum Rows<'a> {
     /// Commanded joints: the row model adds the joint offsets.
     Commanded(&'a [f64]),
-    /// Actual joints ([`RowModel::actual_joints`]: offsets and time effects applied).
-    Actual(&'a [f64]),
+    /// Actual joints ([`RowModel::actual_joints`]: offsets and time effects applied),
+    /// with the commanded ones and the rows' times (s) they came from (for the
+    /// `[model.empirical]` correction; `None`: no times).
+    Actual {
+        /// The actual joints.
+        actual: &'a [f64],
+        /// The commanded joints.
+        commanded: &'a [f64],
+        /// Each row's time, s.
+        t_s: Option<&'a [f64]>,
+    },
 }
 
 /// Solves the rows `range` of `rows` in order, each warm-started from the rows before
@@ -74,7 +83,16 @@ pub fn solve_rows(
         let r = row * width..(row + 1) * width;
         let tip = match rows {
             Rows::Commanded(j) => solver.fk(&j[r]),
-            Rows::Actual(a) => solver.fk_actual(&a[r], [0.0; 3]),
+            Rows::Actual {
+                actual,
+                commanded,
+                t_s,
+            } => solver.fk_timed(
+                &commanded[r.clone()],
+                &actual[r],
+                t_s.map_or(f64::NAN, |t| t[row]),
+                [0.0; 3],
+            ),
         };
         if !each(row, tip) {
             return;
@@ -128,7 +146,11 @@ pub fn batch_fk(
         None
     };
     let rows = match &actual {
-        Some(a) => Rows::Actual(a),
+        Some(a) => Rows::Actual {
+            actual: a,
+            commanded: joints,
+            t_s,
+        },
         None => Rows::Commanded(joints),
     };
     let mut out = Vec::with_capacity(n_rows);

@@ -11,7 +11,7 @@
 
 use crate::batch::{batch_ik, solve_rows, IkBatchOptions, Rows, WARM_CHUNK_ROWS};
 use crate::ik::{Ik, IkOptions, IkStatus};
-use crate::model::{ModelError, ModelSpec, RowModel};
+use crate::model::{ModelError, ModelSpec, RowModel, EMPIRICAL};
 use ctr_core::{Model, SolveError, Status};
 use ctr_formats::parallel::{for_each_chunk, Progress};
 use ctr_formats::{ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable};
@@ -174,7 +174,11 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                 row_error: None,
             };
             let joints = match &actual {
-                Some(a) => Rows::Actual(a),
+                Some((a, t_s)) => Rows::Actual {
+                    actual: a,
+                    commanded: table.all_joints(),
+                    t_s: t_s.as_deref(),
+                },
                 None => Rows::Commanded(table.all_joints()),
             };
             solve_rows(&fkm, joints, rows, WARM_CHUNK_ROWS, |row, solved| {
@@ -275,21 +279,31 @@ fn model_error(robot: &str, e: ModelError) -> Error {
 /// The actual joints of a joint file's rows under the model's time effects: `t_s`
 /// (when the file has it) the rows' times, `run` (when it has it) their runs; see
 /// [`run_fk`].
-fn time_series(table: &JointTable, fkm: &RowModel, robot: &str) -> Result<Vec<f64>, Error> {
+fn time_series(
+    table: &JointTable,
+    fkm: &RowModel,
+    robot: &str,
+) -> Result<(Vec<f64>, Option<Vec<f64>>), Error> {
     let file = table.file();
     let t_col = table.column("t_s");
     if t_col.is_none() {
         if let Some(effect) = fkm.needs_times() {
-            let tau = fkm.effects().latency.map_or(0.0, |l| l.tau_s);
+            let message = if effect == EMPIRICAL {
+                format!(
+                    "{robot}'s model.empirical has a term in t: it needs a t_s column \
+                     (seconds); add one, or remove the term"
+                )
+            } else {
+                let tau = fkm.effects().latency.map_or(0.0, |l| l.tau_s);
+                format!(
+                    "{effect} needs a t_s column (seconds; rows of a run in time order) to \
+                     delay the commands by model.effects.{effect}.tau_s = {tau} s of \
+                     {robot}; add one, or remove the table"
+                )
+            };
             return Err(Error::new(
                 Location::line(file, table.header_line()),
-                ErrorKind::Effect {
-                    message: format!(
-                        "{effect} needs a t_s column (seconds; rows of a run in time order) to \
-                         delay the commands by model.effects.{effect}.tau_s = {tau} s of \
-                         {robot}; add one, or remove the table"
-                    ),
-                },
+                ErrorKind::Effect { message },
             ));
         }
     }
@@ -341,7 +355,8 @@ fn time_series(table: &JointTable, fkm: &RowModel, robot: &str) -> Result<Vec<f6
             }
         }
     }
-    fkm.actual_joints(table.all_joints(), t_col.map(|_| &times[..]), &runs)
+    let actual = fkm
+        .actual_joints(table.all_joints(), t_col.map(|_| &times[..]), &runs)
         .map_err(|e| {
             Error::new(
                 Location::line(file, table.header_line()),
@@ -349,7 +364,8 @@ fn time_series(table: &JointTable, fkm: &RowModel, robot: &str) -> Result<Vec<f6
                     message: e.to_string(),
                 },
             )
-        })
+        })?;
+    Ok((actual, t_col.map(|_| times)))
 }
 
 /// Where a job's output goes until it is complete: a temporary file beside the target,
@@ -495,14 +511,8 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
         (name, read_robot(&job.robot)?)
     };
     let model = job.model.unwrap_or(spec.model);
-    let ik = Ik::with_effects(
-        &spec.robot,
-        model,
-        &spec.effects,
-        spec.limits.as_deref(),
-        job.options,
-    )
-    .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(Box::new(e))))?;
+    let ik = Ik::for_spec(&spec, model, job.options)
+        .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(Box::new(e))))?;
     let table = {
         let (name, bytes) = read_input(&job.targets)?;
         TargetTable::from_bytes(bytes, &name, job.position_only, job.threads)?

@@ -87,8 +87,9 @@ pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Pre
         let mut solver = rows.solver();
         for (k, row) in range.enumerate() {
             let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
+            let r = &rec.rows[row];
             let tip = solver
-                .fk_actual(a, rec.rows[row].force_n)
+                .fk_timed(&r.q, a, r.t_s, r.force_n)
                 .map_err(|error| match error {
                     SolveError::Joint(error) => SimError::Joint { row, error },
                     error => SimError::Load { row, error },

@@ -25,6 +25,11 @@ pub struct DiagnoseArgs {
     /// Write the fitted model here, as a robot file `ctr-cli fk` reads as is.
     #[arg(long = "out", value_name = "FITTED.toml")]
     pub out: Option<PathBuf>,
+    /// Also write the report's empirical term (not physics; only when the recording is
+    /// not explained) into the fitted file as [model.empirical], which `ctr-cli fk` adds
+    /// to the tip.
+    #[arg(long, requires = "out")]
+    pub with_empirical: bool,
     /// Write before/after plots (SVG) into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
@@ -123,15 +128,20 @@ fn write_outputs(
     d: &Diagnosis,
     report: &Option<PathBuf>,
     out: &Option<PathBuf>,
+    with_empirical: bool,
 ) -> Result<(), Failure> {
     if let Some(path) = report {
         let json = serde_json::to_string_pretty(&d.report).expect("a report serializes");
         write_text(path, &(json + "\n"))?;
     }
     if let Some(path) = out {
-        let fitted = d.fitted_spec(spec);
+        let fitted = if with_empirical {
+            d.fitted_spec_with_empirical(spec)
+        } else {
+            d.fitted_spec(spec)
+        };
         let header = format!(
-            "# Fitted by ctr-cli from {}: {}\n",
+            "# Fitted by ctr-cli from {}: {}{}\n",
             spec.name.as_deref().unwrap_or("the robot file"),
             if d.report.findings.is_empty() {
                 "no effect added".to_owned()
@@ -142,6 +152,11 @@ fn write_outputs(
                     .map(|f| f.effect.as_str())
                     .collect::<Vec<_>>()
                     .join(", ")
+            },
+            if with_empirical && d.empirical.is_some() {
+                "; and an empirical term (not physics) in [model.empirical]"
+            } else {
+                ""
             }
         );
         write_text(path, &(header + &fitted.to_toml()))?;
@@ -157,6 +172,7 @@ fn fit_and_write(
     recording: &Path,
     report: &Option<PathBuf>,
     out: &Option<PathBuf>,
+    with_empirical: bool,
     plots: Option<&Path>,
     fit: impl FnOnce(&ModelSpec, &Recording) -> Result<Diagnosis, DiagnoseError>,
 ) -> Result<(), Failure> {
@@ -164,7 +180,7 @@ fn fit_and_write(
     let (spec, rec) = load(robot, recording)?;
     let model = ModelSpec::from_spec(&spec);
     let d = fit(&model, &rec).map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
-    write_outputs(&spec, &d, report, out)?;
+    write_outputs(&spec, &d, report, out, with_empirical)?;
     if let Some(dir) = plots {
         plots::write_all(dir, &rec, &model, &d).map_err(Failure::Input)?;
     }
@@ -186,6 +202,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         &args.recording,
         report,
         out,
+        args.with_empirical,
         plots,
         |model, rec| ctr_diagnosis::diagnose(model, rec, &options),
     )
@@ -205,6 +222,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
         &args.recording,
         report,
         out,
+        false,
         None,
         |model, rec| ctr_diagnosis::calibrate(model, rec, &args.fit, &options),
     )

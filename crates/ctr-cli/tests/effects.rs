@@ -468,3 +468,58 @@ fn ik_refuses_time_effects() {
         }
     }
 }
+
+/// `[model.empirical]`: `ctr-cli fk` adds each term to the model's tip (with friction
+/// along the runs, from the commanded joints and `t_s`), refuses a term in time without
+/// a `t_s` column, and `ctr-cli ik` refuses the file (it inverts physics only).
+#[test]
+fn an_empirical_term_is_added_by_fk_and_refused_by_ik() {
+    let dir = tempfile::tempdir().unwrap();
+    let friction = "[model.effects.friction]\nrotation_play_deg = [4.0]\n";
+    let terms = "[model.empirical]\nnote = \"test\"\n\
+        [[model.empirical.term]]\nfeature = \"t\"\naxis = \"x\"\nmean = 2.0\nscale = 4.0\ncoefficient_mm = 0.5\n\
+        [[model.empirical.term]]\nfeature = \"cos(theta2 - theta1)\"\naxis = \"z\"\ncoefficient_mm = -0.25\n\
+        [[model.empirical.term]]\nfeature = \"y\"\naxis = \"y\"\nmean = 1.0\nscale = 10.0\ncoefficient_mm = 2.0\n";
+    let plain = robot_with(dir.path(), "plain", friction);
+    let with = robot_with(dir.path(), "with", &format!("{friction}{terms}"));
+    let rows = rows();
+    let joints = joint_csv(&rows, true, true);
+    let base = cli_fk(dir.path(), &plain, &joints, &[]);
+    let corrected = cli_fk(dir.path(), &with, &joints, &[]);
+    for ((b, c), (t, _, q)) in base.iter().zip(&corrected).zip(&rows) {
+        let rel = (q[3] - q[1]).to_radians().cos();
+        let want = [
+            b[0] + 0.5 * (t - 2.0) / 4.0,
+            b[1] + 2.0 * (b[1] - 1.0) / 10.0,
+            b[2] - 0.25 * rel,
+        ];
+        for a in 0..3 {
+            assert!((c[a] - want[a]).abs() < 1e-12, "{c:?} vs {want:?}");
+        }
+    }
+    // a term in time without t_s: refused, naming the section
+    let j = dir.path().join("untimed.csv");
+    std::fs::write(&j, joint_csv(&rows, false, true)).unwrap();
+    let o = cli().args(fk_args(&with, &j, &[])).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("model.empirical has a term in t: it needs a t_s column"),
+        "{}",
+        stderr(&o)
+    );
+    // ik: refused with the reason
+    let targets = dir.path().join("targets.csv");
+    std::fs::write(&targets, "x_mm,y_mm,z_mm\n0,0,150\n").unwrap();
+    let static_only = robot_with(dir.path(), "static", &terms.replace("\"t\"", "\"s1\""));
+    let o = cli()
+        .args(ik_args(&static_only, &targets, &[]))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o)
+            .contains("model.empirical: the inverse kinematics inverts the physical model only"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -14,80 +14,8 @@
 //! current error, `min(1, c / |e|)`, as the physical fits are, so tracker outliers do
 //! not steer it.
 
-use ctr_formats::Recording;
+use ctr_formats::{Feature, Recording};
 use nalgebra::{DMatrix, DVector};
-
-/// One function of a row's features.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Feature {
-    /// 1.
-    Constant,
-    /// Tube `i`'s feed (0-based).
-    Feed(usize),
-    /// cos or sin (`sin` true) of tube `i`'s rotation.
-    Rotation(usize, bool),
-    /// cos or sin of `theta_{i+1} - theta_i` (`i` the outer tube of the pair).
-    Relative(usize, bool),
-    /// The recording time.
-    Time,
-    /// An axis of the modelled tip position.
-    Tip(usize),
-}
-
-impl Feature {
-    /// The basis for `n` tubes (with the modelled tip position where `tip`).
-    fn all(n: usize, tip: bool) -> Vec<Feature> {
-        let mut out = vec![Feature::Constant];
-        for i in 0..n {
-            out.push(Feature::Feed(i));
-            out.push(Feature::Rotation(i, false));
-            out.push(Feature::Rotation(i, true));
-        }
-        for i in 0..n.saturating_sub(1) {
-            out.push(Feature::Relative(i, false));
-            out.push(Feature::Relative(i, true));
-        }
-        out.push(Feature::Time);
-        if tip {
-            out.extend((0..3).map(Feature::Tip));
-        }
-        out
-    }
-
-    /// The raw value at a row with joints `q` (file units), time `t_s` and modelled
-    /// tip `tip`.
-    fn raw(self, q: &[f64], t_s: f64, tip: &[f64; 3]) -> f64 {
-        let angle = |i: usize| q[2 * i + 1].to_radians();
-        let trig = |x: f64, sin: bool| if sin { x.sin() } else { x.cos() };
-        match self {
-            Feature::Constant => 1.0,
-            Feature::Feed(i) => q[2 * i],
-            Feature::Rotation(i, sin) => trig(angle(i), sin),
-            Feature::Relative(i, sin) => trig(angle(i + 1) - angle(i), sin),
-            Feature::Time => t_s,
-            Feature::Tip(a) => tip[a],
-        }
-    }
-
-    /// The feature's name in a report.
-    pub(crate) fn name(self) -> String {
-        match self {
-            Feature::Constant => "1".into(),
-            Feature::Feed(i) => format!("s{}", i + 1),
-            Feature::Rotation(i, sin) => {
-                format!("{}(theta{})", if sin { "sin" } else { "cos" }, i + 1)
-            }
-            Feature::Relative(i, sin) => format!(
-                "{}(theta{} - theta{})",
-                if sin { "sin" } else { "cos" },
-                i + 2,
-                i + 1
-            ),
-            Feature::Time => "t".into(),
-            Feature::Tip(a) => ["x", "y", "z"][a].into(),
-        }
-    }
-}
 
 /// The basis evaluated at every row, each feature but the constant standardised to
 /// zero mean and unit spread over the fit rows; features that do not vary there are
@@ -97,6 +25,8 @@ pub(crate) struct Basis {
     pub(crate) features: Vec<Feature>,
     /// Column `j` holds feature `j` at every row.
     columns: Vec<Vec<f64>>,
+    /// Each feature's centre and spread: column `j` is `(f_j - centre) / spread`.
+    pub(crate) standard: Vec<(f64, f64)>,
 }
 
 impl Basis {
@@ -126,23 +56,30 @@ impl Basis {
                 rec.rows
                     .iter()
                     .zip(tips)
-                    .map(|(r, p)| f.raw(&r.q, r.t_s, p))
+                    .map(|(r, p)| f.value(&r.q, r.t_s, p))
                     .collect()
             })
             .collect();
-        Basis { features, columns }
+        let standard = vec![(0.0, 1.0); features.len()];
+        Basis {
+            features,
+            columns,
+            standard,
+        }
     }
 
     fn with(rec: &Recording, tips: &[[f64; 3]], fit: &[bool], tip: bool) -> Self {
         let mut features = Vec::new();
         let mut columns = Vec::new();
+        let mut standard = Vec::new();
         for f in Feature::all(rec.n_tubes, tip) {
             let mut col: Vec<f64> = rec
                 .rows
                 .iter()
                 .zip(tips)
-                .map(|(r, p)| f.raw(&r.q, r.t_s, p))
+                .map(|(r, p)| f.value(&r.q, r.t_s, p))
                 .collect();
+            let mut centre_spread = (0.0, 1.0);
             if f != Feature::Constant {
                 let (mut n, mut mean) = (0.0, 0.0);
                 for (v, _) in col.iter().zip(fit).filter(|(_, m)| **m) {
@@ -162,11 +99,17 @@ impl Basis {
                 }
                 let sd = var.sqrt();
                 col.iter_mut().for_each(|v| *v = (*v - mean) / sd);
+                centre_spread = (mean, sd);
             }
             features.push(f);
             columns.push(col);
+            standard.push(centre_spread);
         }
-        Basis { features, columns }
+        Basis {
+            features,
+            columns,
+            standard,
+        }
     }
 }
 

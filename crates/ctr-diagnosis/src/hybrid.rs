@@ -8,12 +8,15 @@
 //! fitted on the other folds and scored on the fold left out. The size with the lowest
 //! total validation error wins (ties to the smaller), and the correction of that size
 //! is fitted on all fit rows. The held-out rows never take part: the held-out RMS with
-//! the term is the honest figure of what it adds.
+//! the term is the honest figure of what it adds. The same correction, as the robot
+//! file's `[model.empirical]` ([`Correction`]), is what `ctr-cli diagnose --with-empirical`
+//! writes and `ctr-cli fk` applies.
 
 use crate::empirical::{self, Basis, Field};
 use crate::report::{Empirical, Term};
 use crate::residual::figures;
 use ctr_formats::Recording;
+use ctr_formats::{Correction, Term as CorrectionTerm};
 
 /// Folds of the cross-validation.
 pub const FOLDS: usize = 5;
@@ -33,7 +36,7 @@ pub(crate) fn fit(
     e: &[[f64; 3]],
     held: &[bool],
     huber_mm: f64,
-) -> (Empirical, Vec<[f64; 3]>) {
+) -> (Empirical, Correction, Vec<[f64; 3]>) {
     let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
     let tips: Vec<[f64; 3]> = rec
         .rows
@@ -58,13 +61,35 @@ pub(crate) fn fit(
             Term {
                 feature: basis.features[j].name(),
                 axis: ["x", "y", "z"][a].into(),
-                coefficient_mm: c,
+                coefficient_mm: -c,
                 rms_mm: rms,
             }
         })
         .collect();
     dominant.sort_by(|a, b| b.rms_mm.total_cmp(&a.rms_mm));
     dominant.truncate(DOMINANT_TERMS);
+    let correction = Correction {
+        note: format!(
+            "empirical, not physics: fitted by ctr-cli diagnose on {} ({} terms by {FOLDS}-fold \
+             cross-validation on the fit rows)",
+            rec.file,
+            chosen.len()
+        ),
+        terms: chosen
+            .iter()
+            .map(|&(i, c)| {
+                let j = i / 3;
+                let (mean, scale) = basis.standard[j];
+                CorrectionTerm {
+                    feature: basis.features[j],
+                    axis: i % 3,
+                    mean,
+                    scale,
+                    coefficient_mm: -c,
+                }
+            })
+            .collect(),
+    };
     (
         Empirical {
             method: format!(
@@ -78,6 +103,7 @@ pub(crate) fn fit(
             heldout_rms_mm: fig.heldout_rms_mm,
             dominant,
         },
+        correction,
         left,
     )
 }

@@ -4,7 +4,7 @@
 use crate::candidates::EffectId;
 use crate::locate::Statement;
 use ctr_analysis::model::ModelSpec;
-use ctr_formats::RobotSpec;
+use ctr_formats::{Correction, RobotSpec};
 use serde::Serialize;
 
 /// Error figures of a model on a recording, mm.
@@ -24,9 +24,10 @@ pub struct Term {
     /// The basis function (`t`, `s2`, `cos(theta1)`, `x`, ... standardised over the
     /// fit rows).
     pub feature: String,
-    /// The axis of the tip error it corrects (`x`, `y` or `z`).
+    /// The tip coordinate it corrects (`x`, `y` or `z`).
     pub axis: String,
-    /// Its coefficient, mm per standard deviation of the feature.
+    /// What it adds to the modelled tip, mm per standard deviation of the feature
+    /// (as `[model.empirical]` writes it).
     pub coefficient_mm: f64,
     /// RMS of its contribution over the rows, mm.
     pub rms_mm: f64,
@@ -167,6 +168,9 @@ pub struct Diagnosis {
     pub report: Report,
     /// The user's model with the effects found, fitted.
     pub fitted: ModelSpec,
+    /// The report's `empirical` term as the robot file's `[model.empirical]` (only when
+    /// the recording is not explained).
+    pub empirical: Option<Correction>,
 }
 
 impl Report {
@@ -247,8 +251,24 @@ impl Diagnosis {
         RobotSpec {
             model: self.fitted.model,
             effects: self.fitted.effects.clone(),
+            empirical: self.fitted.empirical.clone(),
             ..spec.clone()
         }
+    }
+
+    /// [`fitted_spec`](Self::fitted_spec) with the empirical term as `[model.empirical]`
+    /// (its terms after any the user's file had): what `ctr-cli diagnose
+    /// --with-empirical` writes. The same as `fitted_spec` when the recording is
+    /// explained.
+    pub fn fitted_spec_with_empirical(&self, spec: &RobotSpec) -> RobotSpec {
+        let mut out = self.fitted_spec(spec);
+        if let Some(c) = &self.empirical {
+            let mut all = out.empirical.take().unwrap_or_default();
+            all.note = c.note.clone();
+            all.terms.extend(c.terms.iter().copied());
+            out.empirical = Some(all);
+        }
+        out
     }
 }
 

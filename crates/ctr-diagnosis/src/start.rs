@@ -100,7 +100,7 @@ impl Start {
         };
         // outliers judged on what is left after the physics and the empirical term: a
         // structured residual is spread, not outlying
-        let (empirical, left) = hybrid::fit(rec, e, &self.held, huber_mm);
+        let (empirical, correction, left) = hybrid::fit(rec, e, &self.held, huber_mm);
         let (outliers, outlier_threshold_mm) = outlier_rows(rec, &left);
         let inliers = inlier_figures(e, &self.held, &outliers);
         let explained = inliers.heldout_rms_mm <= NOISE_TOLERANCE * noise.rms_mm;
@@ -138,6 +138,7 @@ impl Start {
                 final_inliers: inliers,
             },
             fitted,
+            empirical: (!explained).then_some(correction),
         }
     }
 }

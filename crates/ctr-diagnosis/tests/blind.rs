@@ -148,11 +148,13 @@ fn run(case: Case) {
             Model::Torsion
         },
         effects: Effects::default(),
+        empirical: None,
     };
     let world = ModelSpec {
         robot: spec.robot,
         model: Model::Torsion,
         effects: case.effects.clone(),
+        empirical: None,
     };
     let gen = generate(&world, &ranges, &synth_spec(&case, spec.robot.n_tubes())).unwrap();
     assert_eq!(gen.failed, 0, "{}: the world's solves converge", case.name);
@@ -458,6 +460,7 @@ fn generated_recording_round_trips_through_csv() {
             latency: Some(Latency { tau_s: 0.3 }),
             ..Default::default()
         },
+        empirical: None,
     };
     let synth = synth_spec(&case, 3);
     let a = generate(&world, &ranges, &synth).unwrap();

@@ -8,7 +8,9 @@ mod common;
 
 use common::{print_trials, recording};
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{diagnose, Options};
+use ctr_analysis::simulate::predict;
+use ctr_diagnosis::{diagnose, split, Options};
+use ctr_formats::RobotSpec;
 
 fn check(id: &str) {
     let (spec, rec, truth) = recording(id);
@@ -39,6 +41,50 @@ fn check(id: &str) {
     assert_eq!(r.explained, !outside, "{id}: explained");
     if !outside {
         assert!(r.final_.heldout_rms_mm <= 1.25 * floor, "{id}");
+        assert!(
+            r.empirical.is_none() && d.empirical.is_none(),
+            "{id}: no empirical term"
+        );
+    } else {
+        // the empirical term, written as [model.empirical] and read back as a robot file
+        // does, gives the report's figures when the recording is simulated with it
+        let emp = r
+            .empirical
+            .as_ref()
+            .expect("an empirical term when not explained");
+        let text = d.fitted_spec_with_empirical(&spec).to_toml();
+        let back = RobotSpec::from_toml_str(&text, "fitted.toml").unwrap();
+        assert!(back.empirical.is_some(), "{id}: [model.empirical] written");
+        let all: Vec<usize> = (0..rec.runs.len()).collect();
+        let p = predict(&ModelSpec::from_spec(&back), &rec, &all).unwrap().p;
+        let (held, _) = split(&rec, &Options::default().holdout).unwrap();
+        let (mut fit_sse, mut fit_n, mut held_sse, mut held_n) = (0.0, 0, 0.0, 0);
+        for (k, row) in rec.rows.iter().enumerate() {
+            let e2: f64 = (0..3).map(|a| (p[k][a] - row.p[a]).powi(2)).sum();
+            if held[k] {
+                held_sse += e2;
+                held_n += 1;
+            } else {
+                fit_sse += e2;
+                fit_n += 1;
+            }
+        }
+        let (fit_rms, held_rms) = (
+            (fit_sse / fit_n as f64).sqrt(),
+            (held_sse / held_n as f64).sqrt(),
+        );
+        eprintln!(
+            "   with [model.empirical]: {fit_rms:.6}/{held_rms:.6} (report {:.6}/{:.6})",
+            emp.rms_mm, emp.heldout_rms_mm
+        );
+        assert!(
+            (fit_rms - emp.rms_mm).abs() < 1e-6 && (held_rms - emp.heldout_rms_mm).abs() < 1e-6,
+            "{id}"
+        );
+        assert!(
+            emp.heldout_rms_mm < r.final_.heldout_rms_mm,
+            "{id}: the term helps on held-out rows"
+        );
     }
     let planted: Vec<usize> = truth["noise"]["outlier_rows"]
         .as_array()

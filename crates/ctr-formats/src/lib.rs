@@ -149,6 +149,7 @@
 mod actuation;
 mod csvout;
 mod effects;
+mod empirical;
 mod error;
 mod joints;
 mod output;
@@ -173,6 +174,7 @@ pub use effects::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
     SensorOffset, Stiffness, CLEARANCE_FIT_TABLE_SIZES,
 };
+pub use empirical::{Correction, Empirical, EmpiricalTerm, Feature, Term, AXES};
 pub use joints::JointTable;
 pub use output::AtomicFile;
 pub use recorded::{RecordedRow, Recording, Run};

@@ -4,6 +4,7 @@
 
 use super::actuation::{ActuatedJoint, ActuationSection};
 use super::effects::Effects;
+use super::empirical::{Correction, Empirical};
 use super::toml_doc::{exact_opt, line_col, one_line, path_at, span_of, Key};
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::AnyRobot;
@@ -110,6 +111,9 @@ pub struct ModelSection {
     /// `[model.effects]`: effects beyond the base model.
     #[serde(default, skip_serializing_if = "Effects::is_empty")]
     pub effects: Effects,
+    /// `[model.empirical]`: a labelled data-driven correction of the tip (not physics).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub empirical: Option<Empirical>,
 }
 
 /// The base model of `[model] kind`, and the one table of its names ([`name`](Self::name),
@@ -265,6 +269,8 @@ pub struct RobotSpec {
     pub model: Model,
     /// `[model.effects]`, checked against the robot.
     pub effects: Effects,
+    /// `[model.empirical]`, checked against the robot.
+    pub empirical: Option<Correction>,
     /// `[limits]`, one entry per tube, every range finite with `min <= max`.
     pub limits: Option<Vec<TubeLimits>>,
     /// `[actuation]`, validated against the robot: exactly one feed and one rotation
@@ -331,6 +337,21 @@ impl RobotFile {
                 vec![Name("model"), Name("kind")],
             ));
         }
+        let empirical = match &section.empirical {
+            None => None,
+            Some(e) => Some(Correction::check(e, params.len()).map_err(
+                |((term, key), message)| {
+                    let path = vec![
+                        Name("model"),
+                        Name("empirical"),
+                        Name("term"),
+                        Index(term),
+                        Name(key),
+                    ];
+                    (ErrorKind::Effect { message }, path)
+                },
+            )?),
+        };
         let (stiffness, radius) = section.effects.scale_factors(params.len());
         if let Err(e) = robot.scaled(&stiffness, &radius) {
             return Err((ErrorKind::Robot(e), vec![Name("model"), Name("effects")]));
@@ -384,6 +405,7 @@ impl RobotFile {
             robot,
             model: section.kind.into(),
             effects: section.effects,
+            empirical,
             limits,
             actuation,
         })
@@ -478,6 +500,7 @@ impl RobotSpec {
             model: Some(ModelSection {
                 kind: self.model.into(),
                 effects: self.effects.clone(),
+                empirical: self.empirical.as_ref().map(Correction::to_file),
             }),
             limits: self.limits.clone().map(|tube| LimitsSection { tube }),
             actuation: self

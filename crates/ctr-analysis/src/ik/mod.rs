@@ -176,6 +176,7 @@ impl Ik {
             robot: *robot,
             model,
             effects: effects.clone(),
+            empirical: None,
         };
         let rows = spec.rows().map_err(|e| IkError::Effect(e.to_string()))?;
         for (effect, on) in [
@@ -228,9 +229,24 @@ impl Ik {
     /// An IK solver for a robot file's robot, model, effects (see
     /// [`with_effects`](Self::with_effects)) and `[limits]`.
     pub fn from_spec(spec: &RobotSpec, options: IkOptions) -> Result<Ik, IkError> {
+        Ik::for_spec(spec, spec.model, options)
+    }
+
+    /// [`from_spec`](Self::from_spec) under `model` instead of the file's kind. A file
+    /// with a `[model.empirical]` correction is refused ([`IkError::Effect`]): the IK
+    /// inverts the physical model only, and would silently leave the correction out.
+    pub fn for_spec(spec: &RobotSpec, model: Model, options: IkOptions) -> Result<Ik, IkError> {
+        if spec.empirical.is_some() {
+            return Err(IkError::Effect(
+                "model.empirical: the inverse kinematics inverts the physical model only and \
+                 cannot take a data-driven correction; remove [model.empirical] from the robot \
+                 file for ik"
+                    .into(),
+            ));
+        }
         Ik::with_effects(
             &spec.robot,
-            spec.model,
+            model,
             &spec.effects,
             spec.limits.as_deref(),
             options,

@@ -42,7 +42,10 @@ pub use tip::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE
 use crate::limits::JointLimits;
 use crate::timeline::{actual_joints, TimeEffects};
 use ctr_core::{Model, SolveError};
-use ctr_formats::{AnyRobot, Effects, ErrorKind, FkResult, RobotSpec};
+use ctr_formats::{AnyRobot, Correction, Effects, ErrorKind, FkResult, RobotSpec};
+
+/// The name [`RowModel::needs_times`] gives a `[model.empirical]` term in time.
+pub const EMPIRICAL: &str = "empirical";
 use std::fmt;
 use std::ops::Range;
 
@@ -66,6 +69,9 @@ pub struct ModelSpec {
     pub model: Model,
     /// The effects on top.
     pub effects: Effects,
+    /// `[model.empirical]`: a labelled data-driven correction added to the tip after
+    /// everything else (not physics).
+    pub empirical: Option<Correction>,
 }
 
 /// Why a model cannot be prepared, or its time effects cannot run.
@@ -88,6 +94,10 @@ impl fmt::Display for ModelError {
         match self {
             ModelError::Effect(m) => f.write_str(m),
             ModelError::Robot(e) => write!(f, "{e}"),
+            ModelError::NeedsTime { effect: EMPIRICAL } => write!(
+                f,
+                "model.{EMPIRICAL}: a term in t needs the rows' times (t_s, seconds)"
+            ),
             ModelError::NeedsTime { effect } => write!(
                 f,
                 "model.effects.{effect}: needs the rows' times (t_s, seconds) to act along a run"
@@ -105,6 +115,7 @@ impl ModelSpec {
             robot: spec.robot,
             model: spec.model,
             effects: spec.effects.clone(),
+            empirical: spec.empirical.clone(),
         }
     }
 
@@ -114,6 +125,7 @@ impl ModelSpec {
             robot: *robot,
             model,
             effects: Effects::default(),
+            empirical: None,
         }
     }
 
@@ -144,6 +156,11 @@ impl ModelSpec {
                  with the rigid model (kind = \"rigid\" or --model rigid)"
                     .into(),
             ));
+        }
+        if let Some(c) = &self.empirical {
+            // the terms as a file would write them, checked as a file's are
+            Correction::check(&c.to_file(), self.robot.n_tubes())
+                .map_err(|(_, message)| ModelError::Effect(message))?;
         }
         Ok(())
     }
@@ -277,16 +294,27 @@ impl RowModel {
     /// True when an effect needs the rows' order (and for latency their times): the
     /// rows must go through [`actual_joints`](Self::actual_joints) first.
     pub fn needs_time(&self) -> bool {
-        self.spec.effects.needs_time()
+        self.spec.effects.needs_time() || self.corrects_with_time()
     }
 
-    /// The time effect that needs times (not just order) and is on: `latency`.
+    /// The time effect that needs times (not just order) and is on: `latency`, or
+    /// [`EMPIRICAL`] for a `[model.empirical]` term in `t`.
     pub fn needs_times(&self) -> Option<&'static str> {
+        if self.spec.effects.latency.is_some_and(|l| l.tau_s != 0.0) {
+            Some("latency")
+        } else if self.corrects_with_time() {
+            Some(EMPIRICAL)
+        } else {
+            None
+        }
+    }
+
+    /// True when the empirical correction has a term in time.
+    fn corrects_with_time(&self) -> bool {
         self.spec
-            .effects
-            .latency
-            .is_some_and(|l| l.tau_s != 0.0)
-            .then_some("latency")
+            .empirical
+            .as_ref()
+            .is_some_and(Correction::uses_time)
     }
 
     /// True when the actual joints differ from the commanded ones (joint offsets or
@@ -462,17 +490,38 @@ impl RowSolver<'_> {
     /// If `joints.len() != 2 * n_tubes`.
     pub fn fk(&mut self, joints: &[f64]) -> Result<FkResult, SolveError> {
         if !self.model.shifts {
-            return self.fk_actual(joints, [0.0; 3]);
+            return self.fk_timed(joints, joints, f64::NAN, [0.0; 3]);
         }
         let actual = self.actual_of(joints);
-        let tip = self.fk_actual(&actual, [0.0; 3]);
+        let tip = self.fk_timed(joints, &actual, f64::NAN, [0.0; 3]);
         self.buf = actual;
         tip
     }
 
+    /// Solves one row as a time series gives it: its actual joints (as
+    /// [`RowModel::actual_joints`] gives them) under the tip force `force_n`, then the
+    /// `[model.empirical]` correction at its commanded joints and time `t_s` (s).
+    ///
+    /// # Panics
+    /// If a joint row is not `2 n_tubes` values.
+    pub fn fk_timed(
+        &mut self,
+        commanded: &[f64],
+        actual: &[f64],
+        t_s: f64,
+        force_n: [f64; 3],
+    ) -> Result<FkResult, SolveError> {
+        let mut tip = self.bound.fk(actual, force_n)?;
+        if let Some(c) = &self.model.spec.empirical {
+            c.apply(commanded, t_s, &mut tip.position);
+        }
+        Ok(tip)
+    }
+
     /// Solves one row's actual joints (offsets and time effects already applied, as
     /// [`RowModel::actual_joints`] gives them) under the tip force `force_n` (N, in W;
-    /// zeros: none).
+    /// zeros: none): the model alone, without the `[model.empirical]` correction (see
+    /// [`fk_timed`](Self::fk_timed)).
     ///
     /// # Panics
     /// If `actual.len() != 2 * n_tubes`.

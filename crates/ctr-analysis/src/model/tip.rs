@@ -378,6 +378,7 @@ mod tests {
                 robot,
                 model,
                 effects: e.clone(),
+                empirical: None,
             };
             spec.rows().unwrap().tip_fk()
         };

@@ -95,14 +95,7 @@ impl Robot {
 
     /// An IK solver of `model` within the file's limits, or the message of why not.
     fn build_ik(&self, model: Model, options: IkOptions) -> Result<Ik, String> {
-        Ik::with_effects(
-            &self.spec.robot,
-            model,
-            &self.spec.effects,
-            self.spec.limits.as_deref(),
-            options,
-        )
-        .map_err(|e| match e {
+        Ik::for_spec(&self.spec, model, options).map_err(|e| match e {
             // located at the robot file, as `ctr-cli ik` does
             IkError::Limits(_) | IkError::Effect(_) => format!("{}: {e}", self.source),
             _ => e.to_string(),
