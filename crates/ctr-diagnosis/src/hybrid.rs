@@ -110,7 +110,7 @@ pub(crate) fn fit(
 
 /// The number of terms with the lowest cross-validated error on the rows weighted in
 /// `w` (ties to the smaller).
-fn choose_size(fields: &[Field], e: &[[f64; 3]], w: &[f64]) -> usize {
+pub(crate) fn choose_size(fields: &[Field], e: &[[f64; 3]], w: &[f64]) -> usize {
     let fit_rows: Vec<usize> = (0..e.len()).filter(|&r| w[r] > 0.0).collect();
     let fold_of = |k: usize| (k / FOLD_BLOCK_ROWS) % FOLDS;
     let mut sse = [0.0; SIZES.len()];

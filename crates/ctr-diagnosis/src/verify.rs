@@ -8,12 +8,15 @@
 //!
 //! 1. **It beats a generic correction of its size** ([`empirical`]: in the joints and
 //!    time, so that the registration, itself a map of the tip position, is not measured
-//!    against its own form). Take `c` out of
-//!    `M` (the others stay as fitted); fit the best `k`-term empirical correction to
-//!    that model's error on the fit rows; its held-out RMS `h_emp` must be clearly
-//!    above `h`: `h < (1 - MIN_GAIN_OVER_EMPIRICAL) h_emp`. Where `M` leaves nothing
-//!    but noise on the held-out rows (`h <= NOISE_TOLERANCE sigma_n`) the check passes:
-//!    both then explain everything, and the physics is the hypothesis.
+//!    against its own form), within the hybrid model. Let `K` be the size of generic
+//!    correction that cross-validation on the fit rows gives what `M` leaves. Take `c`
+//!    out of `M` (the others stay as fitted) and give that model `K + k` generic terms;
+//!    `M` with `K` terms must do clearly better on the held-out rows:
+//!    `h_K < (1 - MIN_GAIN_OVER_EMPIRICAL) h_emp`. So `c` must explain something a
+//!    generic term cannot, and something else that is left (a drift) neither saves a
+//!    proxy nor sinks a true effect. Where `M` leaves nothing but noise on the held-out
+//!    rows (`h <= NOISE_TOLERANCE sigma_n`, then `K = 0`) the check passes: both then
+//!    explain everything, and the physics is the hypothesis.
 //! 2. **Its parameters are constant, not proportional to something.** An effect
 //!    claims a fixed set of parameters: its error is `J_c(q) dx` with `J_c` the
 //!    derivative of the tip with respect to its parameters and `dx` constant over the
@@ -32,6 +35,7 @@
 use crate::candidates::EffectId;
 use crate::empirical::{self, Basis, Field};
 use crate::fit::Problem;
+use crate::hybrid;
 use crate::noise::NOISE_TOLERANCE;
 use crate::residual::{errors, figures};
 use ctr_analysis::model::ModelSpec;
@@ -116,6 +120,15 @@ impl Context<'_> {
         figures(&left, self.held).heldout_rms_mm
     }
 
+    /// The size of the generic correction (joints and time) that cross-validation on
+    /// the fit rows gives `e`: what is left that a generic term takes, whatever it is.
+    fn generic_size(&self, e: &[[f64; 3]]) -> usize {
+        let fit = self.fit_mask();
+        let basis = Basis::joints_and_time(self.rec, &fit);
+        let w = empirical::weights(e, &fit, self.huber_mm);
+        hybrid::choose_size(&basis.fields(), e, &w)
+    }
+
     /// Checks finding `c` of `m` (whose error is `e`, held-out RMS `h`).
     pub(crate) fn check(&self, m: &ModelSpec, e: &[[f64; 3]], c: EffectId) -> Checked {
         let n = m.robot.n_tubes();
@@ -134,9 +147,18 @@ impl Context<'_> {
         let mut without = m.clone();
         c.remove(&mut without);
         if let Some(e_without) = self.errors_of(&without) {
-            let h_emp = self.empirical_heldout(&e_without, k);
+            // both sides get the generic term that what `M` leaves asks for (size by
+            // cross-validation), the side without `c` k terms more: `c` must explain
+            // something a generic term cannot, not just something else that is left
+            let size = if at_noise { 0 } else { self.generic_size(e) };
+            let h_with = if size == 0 {
+                h
+            } else {
+                self.empirical_heldout(e, size)
+            };
+            let h_emp = self.empirical_heldout(&e_without, size + k);
             out.empirical_heldout_rms_mm = h_emp;
-            if !at_noise && h >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp {
+            if !at_noise && h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp {
                 out.failure = Some(Failure::Empirical {
                     heldout_rms_mm: h_emp,
                 });

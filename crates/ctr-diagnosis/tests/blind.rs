@@ -486,3 +486,84 @@ fn generated_recording_round_trips_through_csv() {
     let back = ctr_formats::Recording::read(csv.as_slice(), &synth.file, 3).unwrap();
     assert_eq!(back, a.recording);
 }
+
+/// Number of seeded recordings of [`effects_outside_the_vocabulary_over_seeds`].
+const OUTSIDE_SEEDS: u64 = 12;
+
+/// Effects outside the vocabulary over many seeds: the kind (feed gain, rotation gain,
+/// gear runout, tracker drift, tracker scale), its size, the robot and whether an effect
+/// of the vocabulary (friction, latency or clearance) acts beside it are all drawn from
+/// the seed. Every case must name exactly the in-vocabulary effect (or nothing), say
+/// `explained: false` and flag at most 2 % of the rows as outliers.
+///
+/// Open (issue 14): 7 of 12 pass today. Two tracker-scale cases are taken for a
+/// sensor offset along the tip (and called explained), and three clearances beside a
+/// drift, a runout or a feed gain are missed. Run it with `--include-ignored` (about 4
+/// minutes in release).
+#[test]
+#[ignore = "open: 5 of 12 seeds fail (tracker scale read as sensor_offset; clearance missed beside other errors)"]
+fn effects_outside_the_vocabulary_over_seeds() {
+    use ctr_analysis::rng::Rng;
+    let mut failed = Vec::new();
+    for seed in 0..OUTSIDE_SEEDS {
+        let mut rng = Rng::new(1000 + seed);
+        let robot = ["liu2023", "nitinol2", "nitinol3"][rng.below(3)];
+        let n = robot_and_ranges(robot).0.robot.n_tubes();
+        let sign = if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+        let _unused_draw = rng.below(n); // kept: the seeds' cases stay the same
+        let u = rng.uniform();
+        let unmodelled = match rng.below(5) {
+            0 => Unmodelled::FeedGain {
+                tube: n - 1,
+                gain: 1.0 + sign * (0.04 + 0.04 * u),
+            },
+            1 => Unmodelled::RotationGain {
+                tube: n - 1,
+                gain: 1.0 + sign * (0.05 + 0.05 * u),
+            },
+            2 => Unmodelled::GearRunout {
+                tube: n - 1,
+                amplitude_deg: 8.0 + 4.0 * u,
+                phase_deg: 360.0 * rng.uniform(),
+            },
+            3 => {
+                let d = rng.unit_vector();
+                Unmodelled::TrackerDrift {
+                    velocity_mm_s: d.map(|v| v * (0.004 + 0.004 * u)),
+                }
+            }
+            _ => Unmodelled::TrackerScale {
+                scale_error: [0.0; 3].map(|_: f64| sign * (0.006 + 0.006 * rng.uniform())),
+            },
+        };
+        let mut effects = Effects::default();
+        if rng.uniform() < 0.5 {
+            match rng.below(3) {
+                0 => effects.friction = Some(friction(&vec![5.0; n - 1])),
+                1 => {
+                    effects.latency = Some(Latency {
+                        tau_s: 0.3 + 0.4 * rng.uniform(),
+                    })
+                }
+                _ => {
+                    effects.clearance = Some(clearance(
+                        &vec![2.5; n - 1],
+                        &vec![360.0 * rng.uniform(); n - 1],
+                    ))
+                }
+            }
+        }
+        let name: &'static str = Box::leak(format!("outside_seed_{seed}").into_boxed_str());
+        let case = Case::new(name, robot, 2000 + seed)
+            .effects(effects)
+            .unmodelled(unmodelled);
+        if std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(case))).is_err() {
+            failed.push(name);
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "{} of {OUTSIDE_SEEDS} failed: {failed:?}",
+        failed.len()
+    );
+}
