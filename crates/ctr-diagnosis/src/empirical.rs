@@ -8,9 +8,9 @@
 //! function on one axis of the tip error with one coefficient, so a correction of `k`
 //! terms has `k` free parameters, as an effect with `k` parameters does.
 //!
-//! [`greedy`] picks the `k` terms by orthogonal matching pursuit on the fit rows (each
-//! step adds the term that lowers the weighted squared error most, then refits all
-//! terms of that axis by least squares). Rows are weighted by the Huber weight of their
+//! [`pursue`] picks the `k` terms by orthogonal matching pursuit on the fit rows (each
+//! step adds the term whose part orthogonal to those chosen lowers the weighted squared
+//! error most; [`path`]), then fits them together by least squares. Rows are weighted by the Huber weight of their
 //! current error, `min(1, c / |e|)`, as the physical fits are, so tracker outliers do
 //! not steer it.
 
@@ -50,16 +50,7 @@ impl Basis {
             .into_iter()
             .filter(|f| *f != Feature::Constant)
             .collect();
-        let columns = features
-            .iter()
-            .map(|f| {
-                rec.rows
-                    .iter()
-                    .zip(tips)
-                    .map(|(r, p)| f.value(&r.q, r.t_s, p))
-                    .collect()
-            })
-            .collect();
+        let columns = features.iter().map(|f| column(rec, tips, *f)).collect();
         let standard = vec![(0.0, 1.0); features.len()];
         Basis {
             features,
@@ -73,12 +64,7 @@ impl Basis {
         let mut columns = Vec::new();
         let mut standard = Vec::new();
         for f in Feature::all(rec.n_tubes, tip) {
-            let mut col: Vec<f64> = rec
-                .rows
-                .iter()
-                .zip(tips)
-                .map(|(r, p)| f.value(&r.q, r.t_s, p))
-                .collect();
+            let mut col = column(rec, tips, f);
             let mut centre_spread = (0.0, 1.0);
             if f != Feature::Constant {
                 let (mut n, mut mean) = (0.0, 0.0);
@@ -113,37 +99,17 @@ impl Basis {
     }
 }
 
+/// Feature `f` at every row of `rec` (modelled tips `tips`), in its own units.
+fn column(rec: &Recording, tips: &[[f64; 3]], f: Feature) -> Vec<f64> {
+    rec.rows
+        .iter()
+        .zip(tips)
+        .map(|(r, p)| f.value(&r.q, r.t_s, p))
+        .collect()
+}
+
 /// Spread below which a feature counts as constant on the fit rows (its own units).
 const MIN_SPREAD: f64 = 1e-9;
-
-/// A fitted correction: terms `(feature index, axis, coefficient)`.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Correction {
-    pub(crate) terms: Vec<(usize, usize, f64)>,
-}
-
-impl Correction {
-    /// The correction's value (to be subtracted from the error) at every row.
-    pub(crate) fn values(&self, basis: &Basis) -> Vec<[f64; 3]> {
-        let rows = basis.columns.first().map_or(0, Vec::len);
-        let mut out = vec![[0.0; 3]; rows];
-        for &(j, a, c) in &self.terms {
-            for (o, v) in out.iter_mut().zip(&basis.columns[j]) {
-                o[a] += c * v;
-            }
-        }
-        out
-    }
-
-    /// The errors `e` with the correction taken off.
-    pub(crate) fn apply(&self, basis: &Basis, e: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        self.values(basis)
-            .iter()
-            .zip(e)
-            .map(|(c, e)| [e[0] - c[0], e[1] - c[1], e[2] - c[2]])
-            .collect()
-    }
-}
 
 /// Huber weight of every row: `min(1, huber_mm / |e|)` on the fit rows, 0 elsewhere.
 pub(crate) fn weights(e: &[[f64; 3]], fit: &[bool], huber_mm: f64) -> Vec<f64> {
@@ -311,15 +277,6 @@ impl Basis {
     }
 }
 
-/// The best correction of `k` terms for the errors `e` (row weights `w`).
-pub(crate) fn greedy(basis: &Basis, e: &[[f64; 3]], w: &[f64], k: usize) -> Correction {
-    let terms = pursue(&basis.fields(), e, w, k)
-        .into_iter()
-        .map(|(i, c)| (i / 3, i % 3, c))
-        .collect();
-    Correction { terms }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -380,12 +337,14 @@ mod tests {
             .map(|r| [0.0, 2.0 * basis.columns[t][r], -0.5 * basis.columns[s][r]])
             .collect();
         let w = vec![1.0; 300];
-        let two = greedy(&basis, &e, &w, 2);
-        let left = two.apply(&basis, &e);
+        let fields = basis.fields();
+        let two = pursue(&fields, &e, &w, 2);
+        let left = subtract(&fields, &two, &e);
         assert!(left.iter().flatten().all(|v| v.abs() < 1e-9));
-        let one = greedy(&basis, &e, &w, 1);
-        assert_eq!(one.terms.len(), 1);
-        assert_eq!((one.terms[0].0, one.terms[0].1), (t, 1));
-        assert!((one.terms[0].2 - 2.0).abs() < 1e-9);
+        let one = pursue(&fields, &e, &w, 1);
+        assert_eq!(one.len(), 1);
+        // field 3 j + a is feature j on axis a
+        assert_eq!((one[0].0 / 3, one[0].0 % 3), (t, 1));
+        assert!((one[0].1 - 2.0).abs() < 1e-9);
     }
 }

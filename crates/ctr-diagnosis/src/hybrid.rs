@@ -14,7 +14,7 @@
 
 use crate::empirical::{self, Basis, Field};
 use crate::report::{Empirical, Term};
-use crate::residual::figures;
+use crate::residual::{figures, tips};
 use ctr_formats::Recording;
 use ctr_formats::{Correction, Term as CorrectionTerm};
 
@@ -38,13 +38,7 @@ pub(crate) fn fit(
     huber_mm: f64,
 ) -> (Empirical, Correction, Vec<[f64; 3]>) {
     let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-    let tips: Vec<[f64; 3]> = rec
-        .rows
-        .iter()
-        .zip(e)
-        .map(|(r, v)| [r.p[0] + v[0], r.p[1] + v[1], r.p[2] + v[2]])
-        .collect();
-    let basis = Basis::new(rec, &tips, &fit_mask);
+    let basis = Basis::new(rec, &tips(rec, e), &fit_mask);
     let fields = basis.fields();
     let w = empirical::weights(e, &fit_mask, huber_mm);
     let terms = choose_size(&fields, e, &w);

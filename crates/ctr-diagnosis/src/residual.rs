@@ -13,6 +13,15 @@ pub(crate) fn errors(rec: &Recording, p: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .collect()
 }
 
+/// The modelled tips of every row: the measured tip plus the error `e`.
+pub(crate) fn tips(rec: &Recording, e: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    rec.rows
+        .iter()
+        .zip(e)
+        .map(|(r, v)| [r.p[0] + v[0], r.p[1] + v[1], r.p[2] + v[2]])
+        .collect()
+}
+
 /// RMS and largest error over the fit rows, RMS over the held-out rows (`held`).
 pub(crate) fn figures(e: &[[f64; 3]], held: &[bool]) -> Figures {
     let (mut sf, mut nf, mut sh, mut nh, mut max) = (0.0, 0usize, 0.0, 0usize, 0.0f64);

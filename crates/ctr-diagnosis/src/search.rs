@@ -9,7 +9,7 @@ use crate::locate;
 use crate::options::Options;
 use crate::prose::{explain, parameters};
 use crate::report::{Diagnosis, Figures, Finding, Trial, REMOVED};
-use crate::residual::{errors, figures};
+use crate::residual::{errors, figures, tips};
 use crate::start::{sample_period, Start};
 use crate::verify;
 use ctr_analysis::model::ModelSpec;
@@ -222,12 +222,7 @@ pub fn diagnose(
             .zip(&current_e)
             .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
             .collect();
-        let tips: Vec<[f64; 3]> = rec
-            .rows
-            .iter()
-            .zip(&e)
-            .map(|(r, v)| [r.p[0] + v[0], r.p[1] + v[1], r.p[2] + v[2]])
-            .collect();
+        let tips = tips(rec, &e);
         let all_mask = vec![true; rec.rows.len()];
         let where_ = locate::summary(&locate::locate(rec, &change, &all_mask, &tips));
         findings.push(Finding {
@@ -253,13 +248,7 @@ pub fn diagnose(
     }
     // every finding checked with the others in place; those that fail are taken out
     // and the rest refitted together, until all pass
-    let ctx = verify::Context {
-        rec,
-        held,
-        huber_mm: huber,
-        threads,
-        noise_rms_mm: start.noise.rms_mm,
-    };
+    let ctx = verify::Context::new(rec, held, huber, threads, start.noise.rms_mm);
     let last_round = tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
     loop {
         let checks: Vec<verify::Checked> = accepted

@@ -37,7 +37,7 @@ use crate::empirical::{self, Basis, Field};
 use crate::fit::Problem;
 use crate::hybrid;
 use crate::noise::NOISE_TOLERANCE;
-use crate::residual::{errors, figures};
+use crate::residual::{errors, figures, tips};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
@@ -49,15 +49,20 @@ pub const MIN_GAIN_OVER_EMPIRICAL: f64 = 0.02;
 
 /// What the checks run on.
 pub(crate) struct Context<'a> {
-    pub(crate) rec: &'a Recording,
+    rec: &'a Recording,
     /// Whether each row is held out.
-    pub(crate) held: &'a [bool],
+    held: &'a [bool],
+    /// Whether each row is fitted.
+    fit: Vec<bool>,
+    /// The generic correction's terms in the joints and time, as fields over the rows
+    /// (the same for every check of a diagnosis: built once).
+    yardstick: Vec<Field>,
     /// Huber threshold of the fits, mm.
-    pub(crate) huber_mm: f64,
+    huber_mm: f64,
     /// Worker threads.
-    pub(crate) threads: usize,
+    threads: usize,
     /// The noise estimate's RMS, mm.
-    pub(crate) noise_rms_mm: f64,
+    noise_rms_mm: f64,
 }
 
 /// Why a finding failed its checks.
@@ -89,9 +94,27 @@ pub(crate) struct Checked {
     pub(crate) failure: Option<Failure>,
 }
 
-impl Context<'_> {
-    fn fit_mask(&self) -> Vec<bool> {
-        self.held.iter().map(|h| !h).collect()
+impl<'a> Context<'a> {
+    /// The checks of a diagnosis of `rec` split by `held`, with the fits' Huber
+    /// threshold, threads and the noise estimate's RMS (mm).
+    pub(crate) fn new(
+        rec: &'a Recording,
+        held: &'a [bool],
+        huber_mm: f64,
+        threads: usize,
+        noise_rms_mm: f64,
+    ) -> Self {
+        let fit: Vec<bool> = held.iter().map(|h| !h).collect();
+        let yardstick = Basis::joints_and_time(rec, &fit).fields();
+        Context {
+            rec,
+            held,
+            fit,
+            yardstick,
+            huber_mm,
+            threads,
+            noise_rms_mm,
+        }
     }
 
     fn errors_of(&self, m: &ModelSpec) -> Option<Vec<[f64; 3]>> {
@@ -101,32 +124,19 @@ impl Context<'_> {
             .map(|p| errors(self.rec, &p.p))
     }
 
-    fn tips(&self, e: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        self.rec
-            .rows
-            .iter()
-            .zip(e)
-            .map(|(r, v)| [r.p[0] + v[0], r.p[1] + v[1], r.p[2] + v[2]])
-            .collect()
-    }
-
     /// Held-out RMS of `e` after the best `k`-term generic correction in the joints
     /// and time fitted to it.
     fn empirical_heldout(&self, e: &[[f64; 3]], k: usize) -> f64 {
-        let fit = self.fit_mask();
-        let basis = Basis::joints_and_time(self.rec, &fit);
-        let w = empirical::weights(e, &fit, self.huber_mm);
-        let left = empirical::greedy(&basis, e, &w, k).apply(&basis, e);
-        figures(&left, self.held).heldout_rms_mm
+        let w = empirical::weights(e, &self.fit, self.huber_mm);
+        let terms = empirical::pursue(&self.yardstick, e, &w, k);
+        figures(&empirical::subtract(&self.yardstick, &terms, e), self.held).heldout_rms_mm
     }
 
     /// The size of the generic correction (joints and time) that cross-validation on
     /// the fit rows gives `e`: what is left that a generic term takes, whatever it is.
     fn generic_size(&self, e: &[[f64; 3]]) -> usize {
-        let fit = self.fit_mask();
-        let basis = Basis::joints_and_time(self.rec, &fit);
-        let w = empirical::weights(e, &fit, self.huber_mm);
-        hybrid::choose_size(&basis.fields(), e, &w)
+        let w = empirical::weights(e, &self.fit, self.huber_mm);
+        hybrid::choose_size(&self.yardstick, e, &w)
     }
 
     /// Checks finding `c` of `m` (whose error is `e`, held-out RMS `h`).
@@ -210,7 +220,7 @@ impl Context<'_> {
         let constant: Vec<Field> = (0..k)
             .map(|j| (0..rows).map(|r| direction(j, r)).collect())
             .collect();
-        let basis = Basis::raw(self.rec, &self.tips(e));
+        let basis = Basis::raw(self.rec, &tips(self.rec, e));
         let mut fields: Vec<Field> = Vec::new();
         let mut names = Vec::new();
         for j in 0..k {
@@ -223,7 +233,7 @@ impl Context<'_> {
                 names.push(feature.name());
             }
         }
-        let w = empirical::weights(e, &self.fit_mask(), self.huber_mm);
+        let w = empirical::weights(e, &self.fit, self.huber_mm);
         let heldout = |fields: &[Field], terms: &[(usize, f64)]| {
             figures(&empirical::subtract(fields, terms, e), self.held).heldout_rms_mm
         };
