@@ -22,7 +22,7 @@ cd "$(dirname "$0")/.."
 
 RUNS=${RUNS:-3}
 ROWS=${ROWS:-1000000}
-ROBOT=../shared/data/robots/nitinol3.toml
+ROBOT=tests/data/shared/robots/nitinol3.toml
 [ -f "$ROBOT" ] || ROBOT=data/robots/nitinol3.toml
 
 cargo build --release -p ctr-cli 2>&1 | tail -n 1 >&2

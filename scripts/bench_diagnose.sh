@@ -6,7 +6,7 @@
 # Builds the release binary and times, wall clock, best of RUNS runs, a whole diagnosis
 # (read, split, locate, all ten candidates fitted in every round, report) of each
 # recording on 2 threads. Target: a 1,000-row recording in <= 5 s on 2 cores. Without
-# arguments it runs the shared recordings (../shared/data/recordings) with their robots
+# arguments it runs the shared recordings (tests/data/shared/recordings, the project's copy) with their robots
 # and the bundled example (data/examples/liu2023-recording.csv).
 # Environment: RUNS (default 3); CLI (a ctr-cli binary to time instead of building
 # this tree's, e.g. an older build for a before/after comparison).
@@ -20,7 +20,7 @@ fi
 
 pairs=("$@")
 if [ ${#pairs[@]} -eq 0 ]; then
-    S=../shared/data
+    S=${CTR_SHARED_DATA:-tests/data/shared}
     for id in clean clearance friction gravity latency registration unexplained-feed-gain unexplained-drift; do
         f=$S/recordings/dev-$id.csv
         [ -f "$f" ] || continue

@@ -12,13 +12,13 @@
 # `ctr-cli diagnose` reports, fitted robot files, summaries and plots' SVGs,
 # `calibrate` and `evaluate`, and, when the `ctr_py` wheel is importable by $PYTHON
 # (default python3), the Python results of scripts/outputs.py.
-# Environment: CTR_SHARED_DATA (default ../shared/data), PYTHON, THREADS (default 2).
+# Environment: CTR_SHARED_DATA (default tests/data/shared, the project's copy), PYTHON, THREADS (default 2).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: outputs.sh OUT_DIR}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
-shared=${CTR_SHARED_DATA:-../shared/data}
+shared=${CTR_SHARED_DATA:-tests/data/shared}
 threads=${THREADS:-2}
 cargo build --release -p ctr-cli 2>&1 | tail -n 1 >&2
 cli=$PWD/target/release/ctr-cli

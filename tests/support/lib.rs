@@ -9,12 +9,13 @@ use ctr_core::{Joints, Robot, TubeParams};
 use serde::Deserialize;
 use std::path::PathBuf;
 
-/// `shared/data` beside the repository (override with `CTR_SHARED_DATA`).
+/// The project's copy of `shared/data` (`tests/data/shared`; override with
+/// `CTR_SHARED_DATA`).
 pub fn shared_data() -> PathBuf {
     if let Ok(p) = std::env::var("CTR_SHARED_DATA") {
         return PathBuf::from(p);
     }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/shared")
 }
 
 #[derive(Deserialize)]

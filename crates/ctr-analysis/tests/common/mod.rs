@@ -8,10 +8,11 @@ use ctr_formats::{FkResult, Recording, RobotSpec};
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// `shared/data` beside the repository (override with `CTR_SHARED_DATA`).
+/// The project's copy of `shared/data` (`tests/data/shared`; override with
+/// `CTR_SHARED_DATA`).
 pub fn shared() -> PathBuf {
     std::env::var_os("CTR_SHARED_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/shared"),
         PathBuf::from,
     )
 }
