@@ -251,14 +251,15 @@ def test_report_attributes_are_the_contract_fields(report):
     d = report.to_dict()
     assert {"baseline", "findings", "final", "unexplained"} <= set(d)
     for key in ("baseline", "findings", "final", "unexplained", "noise", "split",
-                "located", "tried", "failed_rows", "explained"):
+                "located", "tried", "failed_rows", "explained", "uncertainty_method",
+                "identifiability", "correlated", "suggested_run"):
         assert getattr(report, key) == d[key], key
     # the recording is explained: no empirical term, in the JSON or here
     assert report.explained is True and "empirical" not in d and report.empirical is None
     f = report.findings[0]
     assert set(f) == {"effect", "explanation", "where", "parameters", "rms_mm_before",
                       "rms_mm_after", "heldout_rms_mm_before", "heldout_rms_mm_after",
-                      "empirical_heldout_rms_mm"}
+                      "empirical_heldout_rms_mm", "ci95"}
     # plain Python values, fresh on every access
     assert type(report.final["rms_mm"]) is float and type(report.failed_rows) is int
     report.findings.clear()

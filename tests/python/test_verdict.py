@@ -13,6 +13,9 @@ ROBOT = REPO / "data" / "robots" / "liu2023.toml"
 EXAMPLE = REPO / "data" / "examples" / "liu2023-recording.csv"
 # a tracker frame that creeps, mm/s per axis: about 2 mm over the recording
 DRIFT_MM_S = (0.004, -0.003, 0.0)
+# what crates/ctr-diagnosis/examples/example_recording.rs concealed in the example
+LAG_S = 0.3
+KINK_DEG = 2.2
 
 
 @pytest.fixture(scope="module")
@@ -59,3 +62,38 @@ def test_a_drifting_tracker_is_not_explained_and_is_placed_in_time(robot, drifte
     assert any(t["feature"] == "t" for t in emp["dominant"])
     # outliers only where the tracker jumps: none here beyond 2 % of the rows
     assert len(d["outlier_lines"]) <= 0.02 * d["split"]["fit_rows"]
+
+
+def _leaves(v, path=""):
+    """Numbers of a JSON value with their key paths."""
+    if isinstance(v, bool):
+        return []
+    if isinstance(v, (int, float)):
+        return [(path, float(v))]
+    if isinstance(v, list):
+        return [x for i, e in enumerate(v) for x in _leaves(e, f"{path}[{i}]")]
+    if isinstance(v, dict):
+        return [x for k, e in v.items() for x in _leaves(e, f"{path}.{k}")]
+    return []
+
+
+def test_every_parameter_has_an_interval_that_holds_the_concealed_value(robot):
+    report = ctr_py.diagnose(robot, ctr_py.read_recording(EXAMPLE, robot))
+    assert report.uncertainty_method.startswith("95 % intervals")
+    assert report.identifiability == [] and isinstance(report.correlated, list)
+    found = {f["effect"]: f for f in report.findings}
+    for f in found.values():
+        values = _leaves(f["parameters"])
+        ci = f["ci95"]
+        for path, v in values:
+            # the same keys and shapes: each number replaced by [lo, hi] around it
+            node = ci
+            for part in path.replace("[", ".[").split(".")[1:]:
+                node = node[int(part[1:-1])] if part.startswith("[") else node[part]
+            lo, hi = node
+            assert lo <= v <= hi, (f["effect"], path, v, node)
+    lo, hi = found["latency"]["ci95"]["tau_s"]
+    assert lo <= LAG_S <= hi and hi - lo < 0.05
+    lo, hi = found["clearance"]["ci95"]["max_deflection_deg"][0]
+    assert lo <= KINK_DEG <= hi
+    assert "95 % intervals: tau_s" in report.summary()

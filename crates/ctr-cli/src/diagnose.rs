@@ -33,6 +33,11 @@ pub struct DiagnoseArgs {
     /// Write before/after plots (SVG) into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
+    /// Write the run the report suggests recording next (when parameters are poorly
+    /// identified) as a joint file `ctr-cli hw run` plays: t_s and the joint columns.
+    /// Written only when a run is suggested; otherwise a line on stderr says why not.
+    #[arg(long, value_name = "RUN.csv")]
+    pub suggest_run: Option<PathBuf>,
     /// How rows are held out: `blocks:K` (each run in contiguous blocks, one in K held
     /// out; default blocks:4) or `runs:LABEL,LABEL` (those runs held out whole).
     #[arg(long, value_name = "SPLIT", value_parser = str::parse::<Holdout>)]
@@ -123,19 +128,22 @@ fn write_text(path: &Path, text: &str) -> Result<(), Failure> {
     f.commit().map_err(|e| Failure::Input(e.to_string()))
 }
 
-fn write_outputs(
-    spec: &RobotSpec,
-    d: &Diagnosis,
-    report: &Option<PathBuf>,
-    out: &Option<PathBuf>,
+/// Where `diagnose` and `calibrate` write.
+struct Outputs<'a> {
+    report: &'a Option<PathBuf>,
+    out: &'a Option<PathBuf>,
     with_empirical: bool,
-) -> Result<(), Failure> {
-    if let Some(path) = report {
+    plots: Option<&'a Path>,
+    suggest_run: &'a Option<PathBuf>,
+}
+
+fn write_outputs(spec: &RobotSpec, d: &Diagnosis, o: &Outputs<'_>) -> Result<(), Failure> {
+    if let Some(path) = o.report {
         let json = serde_json::to_string_pretty(&d.report).expect("a report serializes");
         write_text(path, &(json + "\n"))?;
     }
-    if let Some(path) = out {
-        let fitted = if with_empirical {
+    if let Some(path) = o.out {
+        let fitted = if o.with_empirical {
             d.fitted_spec_with_empirical(spec)
         } else {
             d.fitted_spec(spec)
@@ -153,7 +161,7 @@ fn write_outputs(
                     .collect::<Vec<_>>()
                     .join(", ")
             },
-            if with_empirical && d.empirical.is_some() {
+            if o.with_empirical && d.empirical.is_some() {
                 "; and an empirical term (not physics) in [model.empirical]"
             } else {
                 ""
@@ -161,27 +169,34 @@ fn write_outputs(
         );
         write_text(path, &(header + &fitted.to_toml()))?;
     }
+    if let Some(path) = o.suggest_run {
+        match &d.suggested_joints {
+            Some(run) => write_text(path, &run.to_csv())?,
+            None => eprintln!(
+                "--suggest-run: no run suggested (every fitted parameter is pinned well, or \
+                 no simple run would pin it better); {} not written",
+                path.display()
+            ),
+        }
+    }
     Ok(())
 }
 
-/// The course of `diagnose` and `calibrate`: checks that the report and the fitted file
-/// can be written, reads the robot and the recording, runs `fit` on the robot's model,
-/// writes the outputs (and the plots into `plots`) and prints the summary.
+/// The course of `diagnose` and `calibrate`: checks that the outputs can be written,
+/// reads the robot and the recording, runs `fit` on the robot's model, writes the
+/// outputs (and the plots) and prints the summary.
 fn fit_and_write(
     robot: &Path,
     recording: &Path,
-    report: &Option<PathBuf>,
-    out: &Option<PathBuf>,
-    with_empirical: bool,
-    plots: Option<&Path>,
+    o: &Outputs<'_>,
     fit: impl FnOnce(&ModelSpec, &Recording) -> Result<Diagnosis, DiagnoseError>,
 ) -> Result<(), Failure> {
-    check_outputs(&[report, out])?;
+    check_outputs(&[o.report, o.out, o.suggest_run])?;
     let (spec, rec) = load(robot, recording)?;
     let model = ModelSpec::from_spec(&spec);
     let d = fit(&model, &rec).map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
-    write_outputs(&spec, &d, report, out, with_empirical)?;
-    if let Some(dir) = plots {
+    write_outputs(&spec, &d, o)?;
+    if let Some(dir) = o.plots {
         plots::write_all(dir, &rec, &model, &d).map_err(Failure::Input)?;
     }
     print!("{}", d.report.summary(&rec.file));
@@ -196,16 +211,16 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         threads: threads(args.threads),
         clearance_table: None,
     };
-    let (report, out, plots) = (&args.report, &args.out, args.plots.as_deref());
-    fit_and_write(
-        &args.robot,
-        &args.recording,
-        report,
-        out,
-        args.with_empirical,
-        plots,
-        |model, rec| ctr_diagnosis::diagnose(model, rec, &options),
-    )
+    let outputs = Outputs {
+        report: &args.report,
+        out: &args.out,
+        with_empirical: args.with_empirical,
+        plots: args.plots.as_deref(),
+        suggest_run: &args.suggest_run,
+    };
+    fit_and_write(&args.robot, &args.recording, &outputs, |model, rec| {
+        ctr_diagnosis::diagnose(model, rec, &options)
+    })
 }
 
 /// `ctr-cli calibrate`.
@@ -216,16 +231,16 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
         clearance_table: args.table.map(usize::from),
         ..Options::default()
     };
-    let (report, out) = (&args.report, &args.out);
-    fit_and_write(
-        &args.robot,
-        &args.recording,
-        report,
-        out,
-        false,
-        None,
-        |model, rec| ctr_diagnosis::calibrate(model, rec, &args.fit, &options),
-    )
+    let outputs = Outputs {
+        report: &args.report,
+        out: &args.out,
+        with_empirical: false,
+        plots: None,
+        suggest_run: &None,
+    };
+    fit_and_write(&args.robot, &args.recording, &outputs, |model, rec| {
+        ctr_diagnosis::calibrate(model, rec, &args.fit, &options)
+    })
 }
 
 /// `ctr-cli evaluate`.

@@ -189,3 +189,75 @@ fn bad_diagnose_input_exits_2_with_one_line() {
         assert_eq!(e.trim_end().lines().count(), 1, "{args:?}: {e}");
     }
 }
+
+/// `--suggest-run`: where the data leave parameters poorly pinned (the drift
+/// recording's feed plays), the report names the next run and the file is a joint
+/// trajectory `hw run` reads (t_s and the joint columns, inside the recorded ranges);
+/// where everything is pinned, no file and a line on stderr.
+#[test]
+fn diagnose_suggests_the_next_run_as_a_joint_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let run_csv = dir.path().join("run.csv");
+    let report = dir.path().join("report.json");
+    let robot = shared("robots/liu2023.toml");
+    let rec = shared("recordings/dev-unexplained-drift.csv");
+    let o = run(&[
+        "diagnose",
+        "--robot",
+        arg(&robot),
+        "--recording",
+        arg(&rec),
+        "--report",
+        arg(&report),
+        "--suggest-run",
+        arg(&run_csv),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("Next run to record: "), "{out}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let rows = r["suggested_run"]["rows"].as_u64().unwrap() as usize;
+    assert!(!r["suggested_run"]["expected"]
+        .as_array()
+        .unwrap()
+        .is_empty());
+    let spec = ctr_formats::RobotSpec::from_path(&robot).unwrap();
+    let table = ctr_formats::JointTable::from_path(&run_csv, &spec.robot).unwrap();
+    assert_eq!(table.len(), rows);
+    let text = std::fs::read_to_string(&run_csv).unwrap();
+    assert!(
+        text.starts_with("t_s,s1_mm,theta1_deg,s2_mm,theta2_deg\n"),
+        "{text}"
+    );
+    let recorded = ctr_formats::Recording::from_path(&rec, 2).unwrap();
+    for line in text.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        for (k, q) in v[1..].iter().enumerate() {
+            let (lo, hi) = recorded
+                .rows
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |a, row| {
+                    (a.0.min(row.q[k]), a.1.max(row.q[k]))
+                });
+            assert!(
+                *q >= lo - 1e-9 && *q <= hi + 1e-9,
+                "column {k}: {q} outside [{lo}, {hi}]"
+            );
+        }
+    }
+    // a recording whose parameters are pinned: nothing written, said why
+    let pinned = dir.path().join("none.csv");
+    let o = run(&[
+        "diagnose",
+        "--robot",
+        arg(&robot),
+        "--recording",
+        arg(&shared("recordings/dev-latency.csv")),
+        "--suggest-run",
+        arg(&pinned),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!pinned.exists());
+    assert!(stderr(&o).contains("no run suggested"), "{}", stderr(&o));
+}

@@ -44,7 +44,7 @@ pub fn calibrate(
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
-    let start = Start::new(model, rec, &opt.holdout)?;
+    let start = Start::new(model, rec, &opt.holdout, opt.threads)?;
     let n = model.robot.n_tubes();
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {
@@ -126,6 +126,7 @@ pub fn calibrate(
             heldout_rms_mm_after: fig.heldout_rms_mm,
             // the user named these effects: no search, so no check against the generic
             empirical_heldout_rms_mm: f64::NAN,
+            ci95: serde_json::Value::Null,
         })
         .collect();
     Ok(

@@ -162,6 +162,52 @@ impl EffectId {
         }
     }
 
+    /// What parameter `i` is, in words, with its unit, and whether it is the natural
+    /// log of a factor (the file writes `exp` of it).
+    pub(crate) fn label(self, n: usize, i: usize) -> Label {
+        let pairs = n.saturating_sub(1);
+        let axis = |k: usize| ["x", "y", "z"][k % 3];
+        let plain = |name: String, unit: &'static str| Label {
+            name,
+            unit,
+            log: false,
+        };
+        match self {
+            EffectId::Torsion => plain("torsion".into(), ""),
+            EffectId::Friction if i < pairs => {
+                plain(format!("rotation play of tubes {}-{}", i + 1, i + 2), "deg")
+            }
+            EffectId::Friction => plain(format!("feed play of tube {}", i - pairs + 1), "mm"),
+            EffectId::Clearance if i.is_multiple_of(2) => plain(
+                format!("clearance kink of tubes {}-{}", i / 2 + 1, i / 2 + 2),
+                "deg",
+            ),
+            EffectId::Clearance => plain(
+                format!("clearance peak angle of tubes {}-{}", i / 2 + 1, i / 2 + 2),
+                "deg",
+            ),
+            EffectId::Gravity => plain(format!("gravity {}", axis(i)), "m/s^2"),
+            EffectId::Registration if i < 3 => {
+                plain(format!("registration translation {}", axis(i)), "mm")
+            }
+            EffectId::Registration => plain(format!("registration rotation {}", axis(i)), "deg"),
+            EffectId::JointOffset if i < n => plain(format!("feed offset of tube {}", i + 1), "mm"),
+            EffectId::JointOffset => plain(format!("rotation offset of tube {}", i - n + 1), "deg"),
+            EffectId::Stiffness => Label {
+                name: format!("stiffness factor of tube {}", i + 1),
+                unit: "",
+                log: true,
+            },
+            EffectId::Precurvature => Label {
+                name: format!("curvature radius factor of tube {}", i + 1),
+                unit: "",
+                log: true,
+            },
+            EffectId::Latency => plain("latency".into(), "s"),
+            EffectId::SensorOffset => plain(format!("sensor offset {}", axis(i)), "mm"),
+        }
+    }
+
     /// Finite-difference step of parameter `i` (its natural scale).
     pub(crate) fn step(self, n: usize, i: usize) -> f64 {
         let pairs = n.saturating_sub(1);
@@ -371,6 +417,17 @@ impl EffectId {
             }
         }
     }
+}
+
+/// A fitted parameter in words (see [`EffectId::label`]).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Label {
+    /// What it is (`stiffness factor of tube 2`).
+    pub name: String,
+    /// Its unit in the file (empty for a factor).
+    pub unit: &'static str,
+    /// True when the fit's parameter is the natural log of the file's factor.
+    pub log: bool,
 }
 
 /// Largest rotation play half-width a fit may reach, deg.

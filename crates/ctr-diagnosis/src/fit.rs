@@ -111,6 +111,65 @@ impl Problem<'_> {
         self.base.robot.n_tubes()
     }
 
+    /// The effect parameter `j` belongs to.
+    pub fn effect_of(&self, j: usize) -> EffectId {
+        let mut at = 0;
+        for &b in &self.blocks {
+            at += self.block_len(b);
+            if j < at {
+                return b;
+            }
+        }
+        unreachable!("parameter index within the blocks")
+    }
+
+    /// Parameter `j` in words (a clearance table's value by its pair and index).
+    pub fn label(&self, j: usize) -> crate::candidates::Label {
+        let n = self.n_tubes();
+        let mut at = 0;
+        for &b in &self.blocks {
+            let k = self.block_len(b);
+            if j < at + k {
+                return match self.table(b) {
+                    Some(size) => crate::candidates::Label {
+                        name: format!(
+                            "clearance table value {} of tubes {}-{}",
+                            (j - at) % size + 1,
+                            (j - at) / size + 1,
+                            (j - at) / size + 2
+                        ),
+                        unit: "deg",
+                        log: false,
+                    },
+                    None => b.label(n, j - at),
+                };
+            }
+            at += k;
+        }
+        unreachable!("parameter index within the blocks")
+    }
+
+    /// The parameters of the blocks as `m` holds them (a clearance table's values
+    /// when fitted as a table).
+    pub fn read(&self, m: &ModelSpec) -> Vec<f64> {
+        let mut x = Vec::new();
+        for &b in &self.blocks {
+            match self.table(b) {
+                // a table's values (zeros where the model has none)
+                Some(k) => {
+                    let pairs = self.n_tubes().saturating_sub(1);
+                    let c = m.effects.clearance.as_ref();
+                    for i in 0..pairs {
+                        let t = c.and_then(|c| c.table_deg.get(i));
+                        x.extend((0..k).map(|v| t.and_then(|t| t.get(v)).copied().unwrap_or(0.0)));
+                    }
+                }
+                None => x.extend(b.read(m)),
+            }
+        }
+        x
+    }
+
     /// The model with parameters `x`.
     pub fn model(&self, x: &[f64]) -> ModelSpec {
         let mut m = self.base.clone();
@@ -123,7 +182,8 @@ impl Problem<'_> {
         m
     }
 
-    fn scale(&self, j: usize) -> (f64, (f64, f64)) {
+    /// Natural scale (finite-difference step) and bounds of parameter `j`.
+    pub fn scale(&self, j: usize) -> (f64, (f64, f64)) {
         let n = self.n_tubes();
         let mut at = 0;
         for &b in &self.blocks {
@@ -151,7 +211,9 @@ impl Problem<'_> {
         out.iter().all(|v| v.is_finite()).then_some(out)
     }
 
-    fn errors(&self, pred: &[f64]) -> Vec<f64> {
+    /// Errors (predicted - measured) of predictions `pred`, 3 per counted row, then the
+    /// roughness rows as they are.
+    pub fn errors(&self, pred: &[f64]) -> Vec<f64> {
         let mut e = pred.to_vec();
         for (k, &r) in self.rows.iter().enumerate() {
             for a in 0..3 {
@@ -162,7 +224,7 @@ impl Problem<'_> {
     }
 
     /// Robust cost and IRLS weights of the errors.
-    fn cost(&self, e: &[f64]) -> (f64, Vec<f64>) {
+    pub fn cost(&self, e: &[f64]) -> (f64, Vec<f64>) {
         let c = self.huber_mm;
         let mut cost = 0.0;
         let w = e

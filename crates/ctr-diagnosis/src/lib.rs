@@ -41,12 +41,17 @@
 //!    physics and reported apart as `empirical`, with its held-out RMS and dominant
 //!    terms. Tracker outliers are judged on what is left after both: rows far from the
 //!    residual's median and from their neighbours, by the residual's own robust spread.
+//! 7. **Uncertainty** (`uncertainty`): every finding's parameters get 95 % intervals
+//!    (`ci95`) from the fit's Jacobian, the larger of the classical and a
+//!    cluster-robust covariance; directions the data cannot pin are tied to the nominal
+//!    and the combinations they do pin reported instead.
 //!
 //! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
 //! outliers), `residual` (error vectors and their figures), [`locate`], `candidates`
 //! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose`]),
 //! `empirical` (the generic basis and matching pursuit), `verify` (the checks of a
-//! finding), `hybrid` (the empirical term),
+//! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
+//! identifiability), `numbers` (a JSON value's numbers by key path),
 //! `calibrate` and `evaluate` (no search), `start` (what both start from and how both
 //! finish), `report` ([`Report`] and its [`summary`](Report::summary)), `prose` (the
 //! words), `options`, `error`. The fits run on the one thread pool,
@@ -65,6 +70,7 @@ mod fit;
 mod hybrid;
 pub mod locate;
 mod noise;
+mod numbers;
 mod options;
 mod prose;
 mod report;
@@ -72,8 +78,10 @@ mod residual;
 mod search;
 mod split;
 mod start;
+mod suggest;
 #[cfg(feature = "synth")]
 pub mod synth;
+mod uncertainty;
 mod verify;
 
 pub use calibrate::calibrate;
@@ -85,8 +93,11 @@ pub use locate::Statement;
 pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::Options;
 pub use report::{
-    Diagnosis, Empirical, Figures, Finding, Noise, Report, RunErrors, Split, Term, Trial,
+    Correlated, Diagnosis, Empirical, ExpectedInterval, Figures, Finding, JointRun, Noise, Report,
+    RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};
+pub use suggest::{MIN_SHRINK, SUGGESTED_ROWS, WIDE};
+pub use uncertainty::{CORRELATED_ABOVE, INDEPENDENT_BELOW, UNIDENTIFIED_EIGEN};
 pub use verify::MIN_GAIN_OVER_EMPIRICAL;

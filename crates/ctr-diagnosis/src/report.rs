@@ -3,6 +3,7 @@
 
 use crate::candidates::EffectId;
 use crate::locate::Statement;
+use crate::numbers::{leaves, sig};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Correction, RobotSpec};
 use serde::Serialize;
@@ -72,6 +73,50 @@ pub struct Finding {
     /// empirical correction of as many parameters, mm (NaN for torsion): the yardstick
     /// it beat (see `verify`).
     pub empirical_heldout_rms_mm: f64,
+    /// 95 % intervals of `parameters`: the same keys and shapes, each number replaced
+    /// by `[lo, hi]` in its unit (`[null, null]` where the data set no bound); with
+    /// `identified`, the combinations the data pin where the parameters alone are not
+    /// (see `uncertainty_method`).
+    pub ci95: serde_json::Value,
+}
+
+/// Two parameters the data hardly tell apart.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Correlated {
+    /// The first parameter, in words.
+    pub a: String,
+    /// The second.
+    pub b: String,
+    /// Their correlation in the fit, -1..1.
+    pub r: f64,
+}
+
+/// A parameter's interval now and after the suggested run, as the fit expects it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ExpectedInterval {
+    /// The parameter, in words (a factor, not its log).
+    pub parameter: String,
+    /// Its fitted value.
+    pub value: f64,
+    /// Its 95 % interval now (`[null, null]`: not identified).
+    pub ci95_now: [Option<f64>; 2],
+    /// Its 95 % interval expected once the run is recorded and diagnosed with the rest.
+    pub ci95_expected: [Option<f64>; 2],
+}
+
+/// The run to record next, when the data leave parameters poorly identified.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SuggestedRun {
+    /// What to do, in words.
+    pub run: String,
+    /// Its rows.
+    pub rows: usize,
+    /// Time between its rows, s (the recording's).
+    pub sample_period_s: f64,
+    /// Why: the uncertain parameters with their intervals now and expected.
+    pub why: String,
+    /// The same, one entry per parameter.
+    pub expected: Vec<ExpectedInterval>,
 }
 
 /// The noise estimate.
@@ -156,10 +201,56 @@ pub struct Report {
     pub outlier_threshold_mm: f64,
     /// The final model's figures without those rows.
     pub final_inliers: Figures,
+    /// How the findings' `ci95` were computed.
+    pub uncertainty_method: String,
+    /// What the data do not identify, in words (empty when every parameter is).
+    pub identifiability: Vec<String>,
+    /// Pairs of fitted parameters correlated above 0.9: the data tell them apart only
+    /// weakly.
+    pub correlated: Vec<Correlated>,
+    /// The run to record next to pin what is poorly identified (`null` when every
+    /// parameter is pinned well or no simple run would help).
+    pub suggested_run: Option<SuggestedRun>,
 }
 
 /// How the note of a finding taken out after the search starts.
 pub(crate) const REMOVED: &str = "removed after the search: ";
+
+/// The joints of a suggested run, as `ctr-cli hw run` plays them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointRun {
+    /// Time of each row from the run's start, s.
+    pub t_s: Vec<f64>,
+    /// Commanded joints of each row, file order and units.
+    pub q: Vec<Vec<f64>>,
+}
+
+impl JointRun {
+    /// The run as a joint file: `t_s` then the joint columns, one row per line.
+    ///
+    /// ```
+    /// let run = ctr_diagnosis::JointRun { t_s: vec![0.0, 0.5], q: vec![vec![10.0, 0.0], vec![10.0, 5.0]] };
+    /// assert_eq!(run.to_csv(), "t_s,s1_mm,theta1_deg\n0,10,0\n0.5,10,5\n");
+    /// ```
+    pub fn to_csv(&self) -> String {
+        let n = self.q.first().map_or(0, |q| q.len() / 2);
+        let mut out = String::from("t_s");
+        for c in ctr_formats::joint_columns(n) {
+            out += ",";
+            out += &c;
+        }
+        out += "\n";
+        for (t, q) in self.t_s.iter().zip(&self.q) {
+            out += &t.to_string();
+            for v in q {
+                out += ",";
+                out += &v.to_string();
+            }
+            out += "\n";
+        }
+        out
+    }
+}
 
 /// A diagnosis: the report and the fitted model.
 #[derive(Clone, Debug)]
@@ -171,6 +262,8 @@ pub struct Diagnosis {
     /// The report's `empirical` term as the robot file's `[model.empirical]` (only when
     /// the recording is not explained).
     pub empirical: Option<Correction>,
+    /// The joints of the report's `suggested_run`.
+    pub suggested_joints: Option<JointRun>,
 }
 
 impl Report {
@@ -212,6 +305,19 @@ impl Report {
                 f.rms_mm_before,
                 f.rms_mm_after
             );
+            let ci = intervals(&f.parameters, &f.ci95);
+            if !ci.is_empty() {
+                s += &format!("  95 % intervals: {ci}\n");
+            }
+        }
+        for line in &self.identifiability {
+            s += &format!("Identifiability: {line}.\n");
+        }
+        for c in &self.correlated {
+            s += &format!(
+                "Hard to tell apart: {} and {} (correlation {:.2}).\n",
+                c.a, c.b, c.r
+            );
         }
         for t in self.tried.iter().filter(|t| t.note.starts_with(REMOVED)) {
             s += &format!(
@@ -224,6 +330,15 @@ impl Report {
             "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
             self.final_.rms_mm, self.final_.heldout_rms_mm, self.unexplained
         );
+        if let Some(run) = &self.suggested_run {
+            s += &format!(
+                "Next run to record: {} ({} rows, one every {} s). Expected: {}.\n",
+                run.run,
+                run.rows,
+                sig(run.sample_period_s),
+                run.why
+            );
+        }
         if let Some(emp) = &self.empirical {
             let terms: Vec<String> = self
                 .dominant_terms()
@@ -283,4 +398,50 @@ pub struct RunErrors {
     pub mean_mm: Vec<f64>,
     /// Largest tip error per model, mm.
     pub max_mm: Vec<f64>,
+}
+
+/// A finding's parameters with their intervals, in words: `tau_s 0.7500 (0.7412 to
+/// 0.7588)`; `identified` combinations after them.
+pub(crate) fn intervals(params: &serde_json::Value, ci95: &serde_json::Value) -> String {
+    let mut values = Vec::new();
+    leaves(params, "", &mut values);
+    let mut bounds = Vec::new();
+    let without = match ci95 {
+        serde_json::Value::Object(m) => {
+            let mut m = m.clone();
+            m.remove("identified");
+            serde_json::Value::Object(m)
+        }
+        other => other.clone(),
+    };
+    leaves(&without, "", &mut bounds);
+    let end = |v: Option<&(String, f64)>| v.map_or("?".to_string(), |(_, v)| sig(*v));
+    let mut parts: Vec<String> = values
+        .iter()
+        .enumerate()
+        .map(|(k, (name, v))| {
+            let lo = bounds.iter().find(|(p, _)| *p == format!("{name}[0]"));
+            let hi = bounds.iter().find(|(p, _)| *p == format!("{name}[1]"));
+            if lo.is_none() && hi.is_none() && bounds.len() < 2 * values.len() && k < values.len() {
+                format!("{name} {} (not bounded)", sig(*v))
+            } else {
+                format!("{name} {} ({} to {})", sig(*v), end(lo), end(hi))
+            }
+        })
+        .collect();
+    if let Some(ids) = ci95.get("identified").and_then(|v| v.as_array()) {
+        for c in ids {
+            let name = c["combination"].as_str().unwrap_or("?");
+            let v = c["value"].as_f64().unwrap_or(f64::NAN);
+            let lo = c["ci95"][0].as_f64().unwrap_or(f64::NAN);
+            let hi = c["ci95"][1].as_f64().unwrap_or(f64::NAN);
+            parts.push(format!(
+                "identified {name} {} ({} to {})",
+                sig(v),
+                sig(lo),
+                sig(hi)
+            ));
+        }
+    }
+    parts.join(", ")
 }

@@ -61,7 +61,7 @@ pub fn diagnose(
     rec: &Recording,
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let start = Start::new(model, rec, &opt.holdout)?;
+    let start = Start::new(model, rec, &opt.holdout, opt.threads)?;
     let (held, all_runs, fit_rows) = (&start.held, &start.all_runs, &start.fit_rows);
     let (e0, baseline) = (&start.e0, start.baseline);
     let n = model.robot.n_tubes();
@@ -235,6 +235,7 @@ pub fn diagnose(
             heldout_rms_mm_before: current_fig.heldout_rms_mm,
             heldout_rms_mm_after: fig.heldout_rms_mm,
             empirical_heldout_rms_mm: f64::NAN,
+            ci95: serde_json::Value::Null,
         });
         // the earlier findings' parameters moved in the joint refit
         for f in &mut findings {

@@ -10,6 +10,8 @@ use crate::prose::leftover;
 use crate::report::{Diagnosis, Figures, Finding, Noise, Report, Split, Trial};
 use crate::residual::{errors, figures, inlier_figures};
 use crate::split::{split, Holdout};
+use crate::suggest;
+use crate::uncertainty;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
@@ -37,6 +39,10 @@ pub(crate) struct Start {
     pub(crate) noise: Noise,
     /// Where the user model's error sits.
     pub(crate) located: Vec<Statement>,
+    /// The user's model (the nominal of every fitted parameter).
+    pub(crate) user: ModelSpec,
+    /// Worker threads (resolved).
+    pub(crate) threads: usize,
 }
 
 impl Start {
@@ -45,6 +51,7 @@ impl Start {
         model: &ModelSpec,
         rec: &Recording,
         holdout: &Holdout,
+        threads: usize,
     ) -> Result<Self, DiagnoseError> {
         let (held, split_method) = split(rec, holdout)?;
         let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
@@ -62,6 +69,8 @@ impl Start {
             all_runs,
             fit_rows,
             e0,
+            user: model.clone(),
+            threads: ctr_formats::parallel::resolve_threads(threads),
         })
     }
 
@@ -82,7 +91,7 @@ impl Start {
         self,
         rec: &Recording,
         fitted: ModelSpec,
-        findings: Vec<Finding>,
+        mut findings: Vec<Finding>,
         final_: Figures,
         e: &[[f64; 3]],
         tried: Vec<Trial>,
@@ -90,6 +99,23 @@ impl Start {
         where_left: impl FnOnce(&[bool]) -> String,
     ) -> Diagnosis {
         let huber_mm = self.huber_mm();
+        // intervals at the fitted model; what the data cannot pin set to the nominal
+        let effects: Vec<_> = findings.iter().map(|f| f.effect).collect();
+        let problem = uncertainty::problem_of(
+            rec,
+            &fitted,
+            &effects,
+            &self.fit_rows,
+            huber_mm,
+            self.threads,
+        );
+        let (fitted, overall, assessment) =
+            uncertainty::attach(&problem, &self.user, &mut findings);
+        let fit_share = self.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
+        let nominal = problem.read(&self.user);
+        let next = assessment
+            .and_then(|a| suggest::next_run(&problem, &a, &nominal, fit_share, sample_period(rec)));
+        let (suggested_run, suggested_joints) = next.unzip();
         let again = estimate_noise(rec, e);
         let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis
             || !self.noise.sigma_mm_per_axis.is_finite()
@@ -136,9 +162,14 @@ impl Start {
                 outlier_rule: outlier_rule(),
                 outlier_threshold_mm,
                 final_inliers: inliers,
+                uncertainty_method: overall.method,
+                identifiability: overall.identifiability,
+                correlated: overall.correlated,
+                suggested_run,
             },
             fitted,
             empirical: (!explained).then_some(correction),
+            suggested_joints,
         }
     }
 }

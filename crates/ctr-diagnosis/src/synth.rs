@@ -520,6 +520,39 @@ pub fn generate(
     );
     let mut rng = Rng::new(spec.seed);
     let commanded = experiments(ranges, spec, &mut rng);
+    measure(world, &commanded, spec, &mut rng)
+}
+
+/// Records `world` commanded through the runs `commanded` (a run a diagnosis suggested,
+/// say), measured as [`generate`] measures: noise and outliers drawn from `spec.seed`.
+///
+/// ```
+/// use ctr_analysis::model::ModelSpec;
+/// use ctr_diagnosis::synth::{record, CommandedRun, SynthSpec};
+/// let spec = ctr_formats::RobotSpec::from_toml_str(
+///     "[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\nlength_mm = 200.0\n\
+///      curved_length_mm = 80.0\ncurvature_radius_mm = 100.0\nyoungs_modulus_mpa = 58000.0\n\
+///      poisson_ratio = 0.33\n", "one.toml")?;
+/// let run = CommandedRun { label: "turn".into(), joints: vec![vec![100.0, 0.0], vec![100.0, 10.0]] };
+/// let rec = record(&ModelSpec::from_spec(&spec), &[run], &SynthSpec::default())?;
+/// assert_eq!(rec.recording.rows.len(), 2);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn record(
+    world: &ModelSpec,
+    commanded: &[CommandedRun],
+    spec: &SynthSpec,
+) -> Result<Synthetic, SimError> {
+    measure(world, commanded, spec, &mut Rng::new(spec.seed))
+}
+
+fn measure(
+    world: &ModelSpec,
+    commanded: &[CommandedRun],
+    spec: &SynthSpec,
+    rng: &mut Rng,
+) -> Result<Synthetic, SimError> {
+    let n = world.robot.n_tubes();
     let mut rows = Vec::new();
     let mut runs = Vec::new();
     let mut t0 = 0.0;

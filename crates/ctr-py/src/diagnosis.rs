@@ -326,6 +326,30 @@ impl Report {
         self.item(py, "explained")
     }
 
+    /// `uncertainty_method`: how the findings' `ci95` were computed.
+    #[getter]
+    fn uncertainty_method<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "uncertainty_method")
+    }
+
+    /// `identifiability`: what the data do not identify, in words.
+    #[getter]
+    fn identifiability<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "identifiability")
+    }
+
+    /// `correlated`: pairs of fitted parameters correlated above 0.9.
+    #[getter]
+    fn correlated<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "correlated")
+    }
+
+    /// `suggested_run`: the run to record next, or `None`.
+    #[getter]
+    fn suggested_run<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "suggested_run")
+    }
+
     /// `empirical`: the labelled empirical correction, or `None` when explained.
     #[getter]
     fn empirical<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {

@@ -364,6 +364,7 @@ Finding = TypedDict(
         "heldout_rms_mm_before": float,
         "heldout_rms_mm_after": float,
         "empirical_heldout_rms_mm": Optional[float],
+        "ci95": Any,
     },
 )
 """One effect found (typing only: a dict at run time): its id, what the model leaves
@@ -371,7 +372,38 @@ out in words with the fitted values, where it shows, its fitted parameters as th
 robot file's ``[model.effects.<id>]`` table writes them, the fit-row and held-out
 RMS before and after adding it, mm, and the held-out RMS of the generic empirical
 correction of as many parameters in its place (the yardstick it beat; ``None`` for
-torsion and for :func:`calibrate`)."""
+torsion and for :func:`calibrate`), and ``ci95``: the 95 % intervals of ``parameters``
+(the same keys and shapes, each number replaced by ``[lo, hi]`` in its unit,
+``[None, None]`` where the data set no bound), with ``identified``, a list of
+``{"combination": str, "value": float, "ci95": [lo, hi]}``, where only a combination
+of the parameters is identified (the ratio of two tubes' stiffness factors)."""
+
+class ExpectedInterval(TypedDict):
+    """A parameter's 95 % interval now and expected after the suggested run (typing
+    only; ``[None, None]``: not identified)."""
+
+    parameter: str
+    value: float
+    ci95_now: List[Optional[float]]
+    ci95_expected: List[Optional[float]]
+
+class SuggestedRun(TypedDict):
+    """The run to record next (typing only)."""
+
+    run: str
+    """What to do, in words (``turn tube 2 alone from 0 to 360 deg and back``)."""
+    rows: int
+    sample_period_s: float
+    why: str
+    expected: List[ExpectedInterval]
+
+class Correlated(TypedDict):
+    """Two fitted parameters the data hardly tell apart (typing only)."""
+
+    a: str
+    b: str
+    r: float
+    """Their correlation in the fit, above 0.9 in size."""
 
 class Noise(TypedDict):
     """The noise estimated from the data (typing only)."""
@@ -489,6 +521,25 @@ class Report:
         (tracker outliers set aside) is consistent with the noise estimate; ``False``
         when a part is left that no effect of the vocabulary accounts for
         (:attr:`unexplained` says where, :attr:`empirical` fits it)."""
+    @property
+    def uncertainty_method(self) -> str:
+        """How the findings' ``ci95`` were computed (the covariance, the clusters, the
+        quantile)."""
+    @property
+    def identifiability(self) -> list[str]:
+        """What the data do not identify, in words, with the combinations they do
+        identify; empty when every parameter is identified."""
+    @property
+    def correlated(self) -> list[Correlated]:
+        """Pairs of fitted parameters correlated above 0.9."""
+    @property
+    def suggested_run(self) -> Optional[SuggestedRun]:
+        """The run to record next when parameters are poorly identified (not
+        identified alone, correlated above 0.9 with another effect's, or an interval
+        wider than a quarter of their size): the candidate run on the recorded ranges
+        whose simulated information shrinks their intervals most, with the intervals
+        expected after it; ``None`` otherwise. ``ctr-cli diagnose --suggest-run``
+        writes its joints."""
     @property
     def empirical(self) -> Optional[dict[str, Any]]:
         """The labelled empirical correction fitted on top of the physics for what is

@@ -1,0 +1,427 @@
+//! The next experiment: when the data leave parameters poorly identified, the simple
+//! run to record that would pin them best.
+//!
+//! A parameter is **uncertain** when the data do not identify it alone, when it is
+//! correlated above [`CORRELATED_ABOVE`] with a parameter of another effect (two effects
+//! explaining the same residual), or when its 95 % interval is wider than [`WIDE`]
+//! times its size (its distance from the nominal, or the RMS distance of its effect's
+//! parameters of the same unit, whichever is larger). For those, every candidate
+//! run on the ranges the recording visited (reachable, and stable as recorded) is
+//! simulated with the fitted model at the recording's sample period:
+//!
+//! - each tube turned alone over its recorded range and back;
+//! - each tube's feed increment swept alone over its range and back;
+//! - the innermost tube turned at full extension (every increment at its largest);
+//! - a reversal: the innermost tube turned back and forth over a quarter of its range,
+//!   four times (friction and latency show at reversals);
+//! - a rest: the middle configuration held (time effects).
+//!
+//! Its information `H_c = J_c^T J_c` (the Jacobian of its predicted tips with respect
+//! to the fitted parameters) is added to the fit's, `H' = H + f H_c` with `f` the share
+//! of a recording's rows a diagnosis fits, and each uncertain parameter's variance is
+//! expected to become `var_j [H'^+]_jj / [H^+]_jj` (the robust covariance scaled as the
+//! classical one shrinks). The run chosen minimises `sum_j ln(var'_j / var_j)` over the
+//! uncertain parameters (the D-optimal choice for their variances, each alone; a
+//! parameter a run makes identifiable counts as a gain of [`NEWLY_IDENTIFIED`]). It is
+//! proposed only when it shrinks their intervals by [`MIN_SHRINK`] on average.
+
+use crate::fit::Problem;
+use crate::numbers::sig;
+use crate::report::{ExpectedInterval, JointRun, SuggestedRun};
+use crate::uncertainty::{pseudo_inverse, Assessment, CORRELATED_ABOVE};
+use ctr_formats::{RecordedRow, Recording, Run};
+use nalgebra::DMatrix;
+
+/// An interval wider than this many times the parameter's distance from its nominal
+/// makes it uncertain.
+pub const WIDE: f64 = 0.25;
+/// Smallest average shrink of the uncertain parameters' half-widths (new / now) for a
+/// run to be proposed.
+pub const MIN_SHRINK: f64 = 0.8;
+/// Variance ratio counted for a parameter a run makes identifiable.
+const NEWLY_IDENTIFIED: f64 = 1e-4;
+/// Rows of a suggested run.
+pub const SUGGESTED_ROWS: usize = 120;
+/// Times the reversal run turns back.
+const REVERSALS: usize = 4;
+/// Sample period used when the recording has no time, s.
+const DEFAULT_PERIOD_S: f64 = 0.1;
+
+/// A candidate run in words and its joints.
+struct Candidate {
+    name: String,
+    q: Vec<Vec<f64>>,
+}
+
+/// From `a` to `b` and back in `rows` rows.
+fn out_and_back(a: f64, b: f64, rows: usize) -> Vec<f64> {
+    let half = rows / 2;
+    (0..rows)
+        .map(|i| {
+            let u = if i <= half {
+                i as f64 / half.max(1) as f64
+            } else {
+                (rows - 1 - i) as f64 / (rows - 1 - half).max(1) as f64
+            };
+            a + (b - a) * u
+        })
+        .collect()
+}
+
+/// Joints (file order) from feed increments and rotations.
+fn joints(inc: &[f64], theta: &[f64]) -> Vec<f64> {
+    let mut s = 0.0;
+    inc.iter()
+        .zip(theta)
+        .flat_map(|(d, t)| {
+            s += d;
+            [s, *t]
+        })
+        .collect()
+}
+
+/// The candidate runs on the ranges `rec` visited.
+fn candidates(rec: &Recording) -> Vec<Candidate> {
+    let n = rec.n_tubes;
+    let inc_of = |q: &[f64]| -> Vec<f64> {
+        (0..n)
+            .map(|k| q[2 * k] - if k == 0 { 0.0 } else { q[2 * k - 2] })
+            .collect()
+    };
+    let mut lo_inc = vec![f64::INFINITY; n];
+    let mut hi_inc = vec![f64::NEG_INFINITY; n];
+    let mut lo_th = vec![f64::INFINITY; n];
+    let mut hi_th = vec![f64::NEG_INFINITY; n];
+    for r in &rec.rows {
+        let inc = inc_of(&r.q);
+        for k in 0..n {
+            lo_inc[k] = lo_inc[k].min(inc[k]);
+            hi_inc[k] = hi_inc[k].max(inc[k]);
+            lo_th[k] = lo_th[k].min(r.q[2 * k + 1]);
+            hi_th[k] = hi_th[k].max(r.q[2 * k + 1]);
+        }
+    }
+    let mid_inc: Vec<f64> = (0..n).map(|k| 0.5 * (lo_inc[k] + hi_inc[k])).collect();
+    let mid_th: Vec<f64> = (0..n).map(|k| 0.5 * (lo_th[k] + hi_th[k])).collect();
+    let rows = SUGGESTED_ROWS;
+    let mut out = Vec::new();
+    for k in 0..n {
+        if hi_th[k] > lo_th[k] {
+            out.push(Candidate {
+                name: format!(
+                    "turn tube {} alone from {:.0} to {:.0} deg and back (the others at the \
+                     middle of their recorded ranges)",
+                    k + 1,
+                    lo_th[k],
+                    hi_th[k]
+                ),
+                q: out_and_back(lo_th[k], hi_th[k], rows)
+                    .into_iter()
+                    .map(|t| {
+                        let mut th = mid_th.clone();
+                        th[k] = t;
+                        joints(&mid_inc, &th)
+                    })
+                    .collect(),
+            });
+        }
+        if hi_inc[k] > lo_inc[k] {
+            out.push(Candidate {
+                name: format!(
+                    "feed tube {} alone, its increment from {:.1} to {:.1} mm and back",
+                    k + 1,
+                    lo_inc[k],
+                    hi_inc[k]
+                ),
+                q: out_and_back(lo_inc[k], hi_inc[k], rows)
+                    .into_iter()
+                    .map(|d| {
+                        let mut inc = mid_inc.clone();
+                        inc[k] = d;
+                        joints(&inc, &mid_th)
+                    })
+                    .collect(),
+            });
+        }
+    }
+    let last = n - 1;
+    if hi_th[last] > lo_th[last] {
+        out.push(Candidate {
+            name: format!(
+                "turn tube {n} from {:.0} to {:.0} deg and back at full extension (every \
+                 increment at its largest)",
+                lo_th[last], hi_th[last]
+            ),
+            q: out_and_back(lo_th[last], hi_th[last], rows)
+                .into_iter()
+                .map(|t| {
+                    let mut th = mid_th.clone();
+                    th[last] = t;
+                    joints(&hi_inc, &th)
+                })
+                .collect(),
+        });
+        let quarter = 0.25 * (hi_th[last] - lo_th[last]);
+        let leg = rows / (2 * REVERSALS);
+        out.push(Candidate {
+            name: format!(
+                "reverse tube {n}'s rotation {REVERSALS} times over {quarter:.0} deg about \
+                 {:.0} deg",
+                mid_th[last]
+            ),
+            q: (0..rows)
+                .map(|i| {
+                    let phase = (i % (2 * leg)) as f64 / leg as f64;
+                    let u = if phase <= 1.0 { phase } else { 2.0 - phase };
+                    let mut th = mid_th.clone();
+                    th[last] = mid_th[last] + quarter * (u - 0.5);
+                    joints(&mid_inc, &th)
+                })
+                .collect(),
+        });
+    }
+    out.push(Candidate {
+        name: "rest at the middle configuration".into(),
+        q: vec![joints(&mid_inc, &mid_th); rows],
+    });
+    out
+}
+
+/// A recording of the run `q` sampled every `period_s` (tips unknown: zeros).
+fn as_recording(rec: &Recording, name: &str, q: &[Vec<f64>], period_s: f64) -> Recording {
+    Recording {
+        file: format!("suggested run ({name})"),
+        n_tubes: rec.n_tubes,
+        rows: q
+            .iter()
+            .enumerate()
+            .map(|(i, q)| RecordedRow {
+                line: i + 2,
+                t_s: i as f64 * period_s,
+                run: 0,
+                q: q.clone(),
+                p: [0.0; 3],
+                quaternion: None,
+                force_n: [0.0; 3],
+            })
+            .collect(),
+        runs: vec![Run {
+            label: "suggested".into(),
+            rows: 0..q.len(),
+        }],
+        has_time: rec.has_time,
+        has_force: false,
+    }
+}
+
+/// The parameters of `a` that are uncertain (see the module doc).
+fn uncertain(a: &Assessment, nominal: &[f64]) -> Vec<usize> {
+    let np = a.x.len();
+    // a parameter's size: its distance from the nominal, or the RMS distance of its
+    // effect's parameters of the same unit (a gravity component near zero is small
+    // beside the gravity, not poorly identified)
+    let size = |j: usize| -> f64 {
+        let same: Vec<f64> = (0..np)
+            .filter(|&i| a.effects[i] == a.effects[j] && a.labels[i].unit == a.labels[j].unit)
+            .map(|i| (a.x[i] - nominal[i]).powi(2))
+            .collect();
+        let rms = (same.iter().sum::<f64>() / same.len().max(1) as f64).sqrt();
+        (a.x[j] - nominal[j]).abs().max(rms)
+    };
+    (0..np)
+        .filter(|&j| {
+            if a.unidentified[j] {
+                return true;
+            }
+            // two effects explaining the same residual
+            let confused = (0..np).any(|i| {
+                a.effects[i] != a.effects[j]
+                    && !a.unidentified[i]
+                    && (a.cov[(i, j)] / (a.cov[(i, i)] * a.cov[(j, j)]).sqrt()).abs()
+                        > CORRELATED_ABOVE
+            });
+            confused || a.t * a.cov[(j, j)].sqrt() > WIDE * size(j)
+        })
+        .collect()
+}
+
+/// The run that would pin `problem`'s uncertain parameters best, with the intervals
+/// expected after recording it (`None` when none is uncertain or no candidate run
+/// helps enough). `fit_share` is the share of rows a diagnosis fits.
+pub(crate) fn next_run(
+    problem: &Problem,
+    a: &Assessment,
+    nominal: &[f64],
+    fit_share: f64,
+    period_s: f64,
+) -> Option<(SuggestedRun, JointRun)> {
+    let targets = uncertain(a, nominal);
+    if targets.is_empty() {
+        return None;
+    }
+    let np = a.x.len();
+    let period = if period_s.is_finite() && period_s > 0.0 {
+        period_s
+    } else {
+        DEFAULT_PERIOD_S
+    };
+    let diag = |h: &DMatrix<f64>| -> Vec<f64> {
+        (0..np)
+            .map(|j| {
+                if h[(j, j)] > 0.0 {
+                    1.0 / h[(j, j)].sqrt()
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    };
+    let (h_pinv, _) = pseudo_inverse(&a.information, &diag(&a.information));
+    // the covariance's scale over the classical one (for parameters identified anew)
+    let mut scales: Vec<f64> = (0..np)
+        .filter(|&j| !a.unidentified[j] && h_pinv[(j, j)] > 0.0)
+        .map(|j| a.cov[(j, j)] / h_pinv[(j, j)])
+        .collect();
+    scales.sort_by(f64::total_cmp);
+    let scale = scales.get(scales.len() / 2).copied().unwrap_or(0.0);
+    let mut best: Option<(f64, Candidate, Vec<f64>)> = None;
+    for c in candidates(problem.rec) {
+        let rec = as_recording(problem.rec, &c.name, &c.q, period);
+        let p = Problem {
+            base: problem.base.clone(),
+            blocks: problem.blocks.clone(),
+            rec: &rec,
+            runs: vec![0],
+            rows: (0..rec.rows.len()).collect(),
+            huber_mm: f64::INFINITY,
+            threads: problem.threads,
+            clearance_table: problem.clearance_table,
+        };
+        let Some(p0) = p.predictions(&a.x) else {
+            continue;
+        };
+        let Some(jac) = p.jacobian(&a.x, &p0) else {
+            continue;
+        };
+        let rows = 3 * rec.rows.len();
+        let jr = jac.rows(0, rows);
+        let h_new = &a.information + (jr.transpose() * jr) * fit_share;
+        let (pinv_new, null_new) = pseudo_inverse(&h_new, &diag(&h_new));
+        let still: Vec<bool> = (0..np)
+            .map(|j| {
+                null_new.iter().any(|v| {
+                    let big = v.amax();
+                    big > 0.0 && v[j].abs() >= 0.05 * big
+                })
+            })
+            .collect();
+        let mut score = 0.0;
+        let mut var = Vec::with_capacity(targets.len());
+        for &j in &targets {
+            let v = if still[j] {
+                f64::INFINITY
+            } else if a.unidentified[j] {
+                scale * pinv_new[(j, j)]
+            } else {
+                a.cov[(j, j)] * pinv_new[(j, j)] / h_pinv[(j, j)]
+            };
+            score += match (a.unidentified[j], still[j]) {
+                (true, true) => 0.0,
+                (true, false) => NEWLY_IDENTIFIED.ln(),
+                _ => (v / a.cov[(j, j)]).ln(),
+            };
+            var.push(v);
+        }
+        if best.as_ref().is_none_or(|b| score < b.0) {
+            best = Some((score, c, var));
+        }
+    }
+    let (score, c, var) = best?;
+    if score > targets.len() as f64 * (MIN_SHRINK * MIN_SHRINK).ln() {
+        return None;
+    }
+    let interval = |j: usize, v: f64| -> [Option<f64>; 2] {
+        if !v.is_finite() {
+            return [None, None];
+        }
+        let half = a.t * v.sqrt();
+        let (lo, hi) = a.bounds[j];
+        let (lo, hi) = ((a.x[j] - half).max(lo), (a.x[j] + half).min(hi));
+        if a.labels[j].log {
+            [Some(lo.exp()), Some(hi.exp())]
+        } else {
+            [Some(lo), Some(hi)]
+        }
+    };
+    let expected: Vec<ExpectedInterval> = targets
+        .iter()
+        .zip(&var)
+        .map(|(&j, &v)| {
+            let now = if a.unidentified[j] {
+                [None, None]
+            } else {
+                interval(j, a.cov[(j, j)])
+            };
+            let value = if a.labels[j].log {
+                a.x[j].exp()
+            } else {
+                a.x[j]
+            };
+            ExpectedInterval {
+                parameter: a.labels[j].name.clone(),
+                value,
+                ci95_now: now,
+                ci95_expected: interval(j, v),
+            }
+        })
+        .collect();
+    let why = expected
+        .iter()
+        .map(|e| {
+            let show = |ci: [Option<f64>; 2]| match ci {
+                [Some(lo), Some(hi)] => format!("{} to {}", sig(lo), sig(hi)),
+                _ => "not identified".into(),
+            };
+            format!(
+                "{} {} ({} now, {} expected)",
+                e.parameter,
+                sig(e.value),
+                show(e.ci95_now),
+                show(e.ci95_expected)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    let t_s = (0..c.q.len()).map(|i| i as f64 * period).collect();
+    Some((
+        SuggestedRun {
+            run: c.name,
+            rows: c.q.len(),
+            sample_period_s: period,
+            why,
+            expected,
+        },
+        JointRun { t_s, q: c.q },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn out_and_back_returns_to_its_start() {
+        let v = out_and_back(0.0, 10.0, 11);
+        assert_eq!(v.first(), Some(&0.0));
+        assert_eq!(v[5], 10.0);
+        assert_eq!(v.last(), Some(&0.0));
+    }
+
+    #[test]
+    fn joints_sum_the_increments() {
+        assert_eq!(
+            joints(&[10.0, 5.0], &[1.0, 2.0]),
+            vec![10.0, 1.0, 15.0, 2.0]
+        );
+    }
+}

@@ -1,0 +1,682 @@
+//! How sure a diagnosis is: a 95 % interval for every fitted parameter, the directions
+//! the data cannot pin, and the pairs they hardly tell apart.
+//!
+//! At the fitted parameters `x` (every finding's block together, on the fit rows), let
+//! `J` be the Jacobian of the predictions (3 per row), `w` the robust fit's weights
+//! and `e` the errors. The information matrix is `H = J^T W J`; scaled to a unit
+//! diagonal, `S = D H D` with `D = diag(H_jj)^(-1/2)`, its eigenvalues say what the
+//! data identify:
+//!
+//! - an eigenvector `v` with eigenvalue below [`UNIDENTIFIED_EIGEN`] x the largest is
+//!   a direction `u = D v` along which the tips do not change: the parameters taking
+//!   part in it are **not identified** (a common factor of every tube's stiffness, seen
+//!   by kinematics alone). Their values are set to the nominal along `u` (the fit's
+//!   value would be arbitrary), their intervals are the fit's bounds, and the
+//!   combinations orthogonal to `u` are reported as what is identified (the ratio of
+//!   two stiffness factors);
+//! - on the identified directions two covariances are computed and the larger variance
+//!   of each parameter kept (correlations from the first):
+//!   - the classical `s^2 H^+`, `s^2 = sum_i w_i |e_i|^2 / (N - p)` (so a residual that
+//!     is more than noise widens the intervals);
+//!   - a cluster-robust sandwich `H^+ (G/(G-1) sum_g u_g u_g^T) H^+`, `u_g = sum_(i in g)
+//!     J_i^T w_i e_i`, over `G` clusters of consecutive fit rows of one run, each
+//!     twice as long as the residual's correlation length (the first lag where its
+//!     autocorrelation along the run falls below [`INDEPENDENT_BELOW`]): errors that
+//!     are not white along a run (a tracker's slow wander, a leftover structure) count
+//!     with their real weight (Liang & Zeger 1986; Cameron & Miller 2015 for the
+//!     `G/(G-1)` correction).
+//! - the interval is `x_j +/- t_(0.975, G-1) sd_j`, clipped to the fit's bounds, and
+//!   written in the robot file's form: an output that depends on one parameter maps
+//!   that parameter's end points (a stiffness factor `exp(ln f +/- ...)`, not
+//!   symmetric), one that depends on several (a gravity direction, a registration
+//!   axis) gets the delta method, `+/- t sqrt(g^T Sigma g)`.
+//!
+//! Pairs correlated above [`CORRELATED_ABOVE`] are listed: the data tell them apart
+//! only by their difference.
+
+use crate::candidates::{EffectId, Label};
+use crate::fit::Problem;
+use crate::numbers::{leaves, replace, sig};
+use crate::prose::{explain, parameters};
+use crate::report::{Correlated, Finding};
+use ctr_analysis::model::ModelSpec;
+use ctr_formats::Recording;
+use nalgebra::{DMatrix, DVector};
+use serde_json::Value;
+
+/// Eigenvalue of the scaled information matrix, relative to its largest, below which
+/// a direction is not identified (a singular value ratio of 1e-4 of the scaled
+/// Jacobian: what finite differences of an exactly invariant direction leave).
+pub const UNIDENTIFIED_EIGEN: f64 = 1e-8;
+
+/// Correlation above which a pair of parameters is listed as hard to tell apart.
+pub const CORRELATED_ABOVE: f64 = 0.9;
+
+/// Autocorrelation of the residual along a run below which rows count as independent
+/// (sets the clusters' length).
+pub const INDEPENDENT_BELOW: f64 = 0.1;
+
+/// Fewest rows in a cluster.
+const MIN_CLUSTER_ROWS: usize = 5;
+/// Longest correlation length looked for, rows.
+const MAX_LAG_ROWS: usize = 100;
+/// Share of a not-identified direction (of its largest component) above which a
+/// parameter takes part in it.
+const PART_OF_DIRECTION: f64 = 0.05;
+/// Finite-difference step of the map from fitted to file parameters, relative to a
+/// parameter's natural scale.
+const OUTPUT_STEP: f64 = 1e-4;
+
+/// A combination of parameters the data identify where the parameters alone are not.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Combination {
+    /// The finding whose `ci95` lists it (that of its first parameter).
+    pub effect: EffectId,
+    /// In words (`stiffness factor of tube 2 / stiffness factor of tube 1`).
+    pub name: String,
+    pub value: f64,
+    pub ci95: [f64; 2],
+}
+
+/// The uncertainty of a fit: covariance, intervals, what is not identified.
+#[derive(Clone, Debug)]
+pub(crate) struct Assessment {
+    /// The fitted parameters (set to the nominal along directions not identified).
+    pub x: Vec<f64>,
+    pub labels: Vec<Label>,
+    /// The effect each parameter belongs to.
+    pub effects: Vec<EffectId>,
+    pub bounds: Vec<(f64, f64)>,
+    steps: Vec<f64>,
+    /// Covariance on the identified directions.
+    pub cov: DMatrix<f64>,
+    /// The information `J^T W J` of the fit rows.
+    pub information: DMatrix<f64>,
+    /// Whether each parameter takes part in a direction not identified.
+    pub unidentified: Vec<bool>,
+    /// Directions not identified, in the parameters' units.
+    null: Vec<DVector<f64>>,
+    /// The 97.5 % quantile used.
+    pub t: f64,
+    /// The method, in words.
+    pub method: String,
+}
+
+/// The 97.5 % quantile of Student's t with `dof` degrees of freedom (exact to 3
+/// decimals below 6, a Cornish-Fisher expansion beyond).
+fn t975(dof: usize) -> f64 {
+    const SMALL: [f64; 5] = [12.706, 4.303, 3.182, 2.776, 2.571];
+    const Z: f64 = 1.959_963_985;
+    match dof {
+        0 => f64::INFINITY,
+        1..=5 => SMALL[dof - 1],
+        _ => {
+            let v = dof as f64;
+            let z2 = Z * Z;
+            Z + (z2 * Z + Z) / (4.0 * v)
+                + (5.0 * z2 * z2 * Z + 16.0 * z2 * Z + 3.0 * Z) / (96.0 * v * v)
+                + (3.0 * z2 * z2 * z2 * Z + 19.0 * z2 * z2 * Z + 17.0 * z2 * Z - 15.0 * Z)
+                    / (384.0 * v * v * v)
+        }
+    }
+}
+
+/// The pseudo-inverse of the information `h` on its identified directions, scaled by
+/// `d` (`D h D` has a unit diagonal), and the directions not identified (scaled).
+pub(crate) fn pseudo_inverse(h: &DMatrix<f64>, d: &[f64]) -> (DMatrix<f64>, Vec<DVector<f64>>) {
+    let np = d.len();
+    let dm = DMatrix::from_diagonal(&DVector::from_column_slice(d));
+    let s = &dm * h * &dm;
+    let eig = s.symmetric_eigen();
+    let lmax = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    let mut s_pinv = DMatrix::<f64>::zeros(np, np);
+    let mut null = Vec::new();
+    for (k, &l) in eig.eigenvalues.iter().enumerate() {
+        let v = eig.eigenvectors.column(k).into_owned();
+        if lmax > 0.0 && l > UNIDENTIFIED_EIGEN * lmax {
+            s_pinv += &v * v.transpose() / l;
+        } else {
+            null.push(v);
+        }
+    }
+    (&dm * s_pinv * &dm, null)
+}
+
+/// Consecutive fit rows of one run, in order (`rows` sorted).
+fn segments(rec: &Recording, rows: &[usize]) -> Vec<std::ops::Range<usize>> {
+    let run_of = |r: usize| rec.runs.iter().position(|run| run.rows.contains(&r));
+    let mut out = Vec::new();
+    let mut start = 0;
+    for k in 1..=rows.len() {
+        let breaks =
+            k == rows.len() || rows[k] != rows[k - 1] + 1 || run_of(rows[k]) != run_of(rows[k - 1]);
+        if breaks {
+            out.push(start..k);
+            start = k;
+        }
+    }
+    out
+}
+
+/// The first lag (rows) at which the residual's autocorrelation along the segments
+/// falls below [`INDEPENDENT_BELOW`]; `r[k]` is row k's weighted error.
+fn correlation_length(r: &[[f64; 3]], segs: &[std::ops::Range<usize>]) -> usize {
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let var: f64 = r.iter().map(|v| dot(v, v)).sum::<f64>() / r.len().max(1) as f64;
+    if var <= 0.0 {
+        return 1;
+    }
+    for lag in 1..MAX_LAG_ROWS {
+        let (mut s, mut n) = (0.0, 0usize);
+        for seg in segs {
+            for k in seg.start..seg.end.saturating_sub(lag) {
+                s += dot(&r[k], &r[k + lag]);
+                n += 1;
+            }
+        }
+        if n == 0 || s / n as f64 / var < INDEPENDENT_BELOW {
+            return lag;
+        }
+    }
+    MAX_LAG_ROWS
+}
+
+impl Assessment {
+    /// The uncertainty of `problem`'s fit at `x` (`None` when it cannot be simulated
+    /// there or has no parameter); `nominal` is what the parameters are without the
+    /// findings (the user's model).
+    pub fn new(problem: &Problem, x: &[f64], nominal: &[f64]) -> Option<Self> {
+        let np = x.len();
+        if np == 0 {
+            return None;
+        }
+        let p0 = problem.predictions(x)?;
+        let e = problem.errors(&p0);
+        let (cost, w) = problem.cost(&e);
+        let jac = problem.jacobian(x, &p0)?;
+        let rows = problem.rows.len();
+        let mut h = DMatrix::<f64>::zeros(np, np);
+        for (row, wr) in w.iter().enumerate() {
+            for a in 0..3 {
+                let ji = jac.row(3 * row + a);
+                h += (ji.transpose() * ji) * *wr;
+            }
+        }
+        // scaled to a unit diagonal; a parameter that moves nothing is not identified
+        let d: Vec<f64> = (0..np)
+            .map(|j| {
+                if h[(j, j)] > 0.0 {
+                    1.0 / h[(j, j)].sqrt()
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let (h_pinv, null_scaled) = pseudo_inverse(&h, &d);
+        let dm = DMatrix::from_diagonal(&DVector::from_vec(d.clone()));
+        let identified = np - null_scaled.len();
+        // classical: the weighted residual variance per component
+        let data = 3 * rows;
+        let s2: f64 = (0..rows)
+            .map(|k| w[k] * (0..3).map(|a| e[3 * k + a].powi(2)).sum::<f64>())
+            .sum::<f64>()
+            / (data.saturating_sub(identified)).max(1) as f64;
+        let classic = &h_pinv * s2;
+        // cluster-robust sandwich over blocks of consecutive fit rows
+        let segs = segments(problem.rec, &problem.rows);
+        let weighted: Vec<[f64; 3]> = (0..rows)
+            .map(|k| [w[k] * e[3 * k], w[k] * e[3 * k + 1], w[k] * e[3 * k + 2]])
+            .collect();
+        let len = (2 * correlation_length(&weighted, &segs)).max(MIN_CLUSTER_ROWS);
+        let mut meat = DMatrix::<f64>::zeros(np, np);
+        let mut clusters = 0usize;
+        for seg in &segs {
+            let n = seg.len();
+            let pieces = (n / len).max(1);
+            for c in 0..pieces {
+                let from = seg.start + c * n / pieces;
+                let to = seg.start + (c + 1) * n / pieces;
+                let mut u = DVector::<f64>::zeros(np);
+                for k in from..to {
+                    for a in 0..3 {
+                        u += jac.row(3 * k + a).transpose() * weighted[k][a];
+                    }
+                }
+                meat += &u * u.transpose();
+                clusters += 1;
+            }
+        }
+        let g = clusters as f64;
+        let sandwich = if clusters >= 2 {
+            &h_pinv * (meat * (g / (g - 1.0))) * &h_pinv
+        } else {
+            classic.clone()
+        };
+        // the larger variance of the two, the classical correlations
+        let sd: Vec<f64> = (0..np)
+            .map(|j| classic[(j, j)].max(sandwich[(j, j)]).max(0.0).sqrt())
+            .collect();
+        let mut cov = DMatrix::<f64>::zeros(np, np);
+        for i in 0..np {
+            for j in 0..np {
+                let denom = (classic[(i, i)] * classic[(j, j)]).sqrt();
+                let r = if denom > 0.0 {
+                    classic[(i, j)] / denom
+                } else {
+                    f64::from(u8::from(i == j))
+                };
+                cov[(i, j)] = r * sd[i] * sd[j];
+            }
+        }
+        // directions not identified, in the parameters' units; set to the nominal
+        let null: Vec<DVector<f64>> = null_scaled.iter().map(|v| &dm * v).collect();
+        let mut unidentified: Vec<bool> = (0..np).map(|j| h[(j, j)] <= 0.0).collect();
+        for u in &null {
+            let big = u.amax();
+            for j in 0..np {
+                if big > 0.0 && u[j].abs() >= PART_OF_DIRECTION * big {
+                    unidentified[j] = true;
+                }
+            }
+        }
+        let mut xs = x.to_vec();
+        if !null_scaled.is_empty() {
+            // in scaled units, x_s - V V^T (x_s - nominal_s)
+            let diff = DVector::from_iterator(np, (0..np).map(|j| (x[j] - nominal[j]) / d[j]));
+            let mut shift = DVector::<f64>::zeros(np);
+            for v in &null_scaled {
+                shift += v * v.dot(&diff);
+            }
+            let tied: Vec<f64> = (0..np).map(|j| x[j] - d[j] * shift[j]).collect();
+            let bounded = tied.iter().enumerate().all(|(j, v)| {
+                let (lo, hi) = problem.scale(j).1;
+                *v >= lo && *v <= hi
+            });
+            // only where the tips really do not move
+            if bounded
+                && problem
+                    .cost_at(&tied)
+                    .is_some_and(|c| c <= cost * (1.0 + 1e-6) + 1e-12)
+            {
+                xs = tied;
+            }
+        }
+        let method = format!(
+            "95 % intervals x +/- t(0.975, {dof}) sd, sd the larger of the classical \
+             (weighted residual variance x pseudo-inverse of J^T W J) and the cluster-robust \
+             sandwich over {clusters} blocks of {len} consecutive fit rows (twice the \
+             residual's correlation length), J the Jacobian of the robust fit on the fit \
+             rows; clipped to the fit's bounds; file-form values by their parameter's end \
+             points, or the delta method where they depend on several; directions whose \
+             scaled information is below {UNIDENTIFIED_EIGEN:e} of the largest are not \
+             identified (their intervals are the fit's bounds)",
+            dof = clusters.saturating_sub(1)
+        );
+        Some(Assessment {
+            x: xs,
+            labels: (0..np).map(|j| problem.label(j)).collect(),
+            effects: (0..np).map(|j| problem.effect_of(j)).collect(),
+            bounds: (0..np).map(|j| problem.scale(j).1).collect(),
+            steps: (0..np).map(|j| problem.scale(j).0).collect(),
+            cov,
+            information: h,
+            unidentified,
+            null,
+            t: t975(clusters.saturating_sub(1)),
+            method,
+        })
+    }
+
+    /// The 95 % interval of fitted parameter `j` (the fit's bounds when not identified).
+    pub fn interval(&self, j: usize) -> (f64, f64) {
+        let (lo, hi) = self.bounds[j];
+        if self.unidentified[j] {
+            return (lo, hi);
+        }
+        let half = self.t * self.cov[(j, j)].sqrt();
+        ((self.x[j] - half).max(lo), (self.x[j] + half).min(hi))
+    }
+
+    /// Pairs of identified parameters correlated above [`CORRELATED_ABOVE`].
+    pub fn correlated(&self) -> Vec<Correlated> {
+        let np = self.x.len();
+        let mut out = Vec::new();
+        for i in 0..np {
+            for j in i + 1..np {
+                if self.unidentified[i] || self.unidentified[j] {
+                    continue;
+                }
+                let r = self.cov[(i, j)] / (self.cov[(i, i)] * self.cov[(j, j)]).sqrt();
+                if r.abs() > CORRELATED_ABOVE {
+                    out.push(Correlated {
+                        a: self.labels[i].name.clone(),
+                        b: self.labels[j].name.clone(),
+                        r,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// The combinations the data identify across each direction they do not, with the
+    /// finding each belongs to (`effect_of` maps a parameter to its block's effect).
+    pub fn combinations(&self, effect_of: impl Fn(usize) -> EffectId) -> Vec<Combination> {
+        let mut out = Vec::new();
+        for u in &self.null {
+            let big = u.amax();
+            let part: Vec<usize> = (0..u.len())
+                .filter(|&j| u[j].abs() >= PART_OF_DIRECTION * big)
+                .collect();
+            let Some(&r) = part.iter().find(|&&j| u[j].abs() >= 0.5 * big) else {
+                continue;
+            };
+            for &j in part.iter().filter(|&&j| j != r) {
+                // a = e_j - (u_j / u_r) e_r is orthogonal to u: identified
+                let ratio = u[j] / u[r];
+                let mut a = DVector::<f64>::zeros(u.len());
+                a[j] = 1.0;
+                a[r] = -ratio;
+                let value = a.dot(&DVector::from_column_slice(&self.x));
+                let half = self.t * (a.transpose() * &self.cov * &a)[(0, 0)].max(0.0).sqrt();
+                let (lj, lr) = (&self.labels[j], &self.labels[r]);
+                let same = (ratio - 1.0).abs() < 0.05;
+                let (name, value, ci95) = if lj.log && lr.log {
+                    let name = if same {
+                        format!("{} / {}", lj.name, lr.name)
+                    } else {
+                        format!("{} / {}^{ratio:.3}", lj.name, lr.name)
+                    };
+                    (
+                        name,
+                        value.exp(),
+                        [(value - half).exp(), (value + half).exp()],
+                    )
+                } else {
+                    let unit = if lj.unit.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", lj.unit)
+                    };
+                    let name = if same {
+                        format!("{} - {}{unit}", lj.name, lr.name)
+                    } else if (ratio + 1.0).abs() < 0.05 {
+                        format!("{} + {}{unit}", lj.name, lr.name)
+                    } else if ratio < 0.0 {
+                        format!("{} + {:.3} x {}{unit}", lj.name, -ratio, lr.name)
+                    } else {
+                        format!("{} - {ratio:.3} x {}{unit}", lj.name, lr.name)
+                    };
+                    (name, value, [value - half, value + half])
+                };
+                out.push(Combination {
+                    effect: effect_of(j),
+                    name,
+                    value,
+                    ci95,
+                });
+            }
+        }
+        out
+    }
+
+    /// What the data do not identify, in words (one sentence per direction).
+    pub fn statements(&self, combos: &[Combination]) -> Vec<String> {
+        let mut out = Vec::new();
+        for u in &self.null {
+            let big = u.amax();
+            let names: Vec<String> = (0..u.len())
+                .filter(|&j| u[j].abs() >= PART_OF_DIRECTION * big)
+                .map(|j| self.labels[j].name.clone())
+                .collect();
+            let ids: Vec<String> = combos
+                .iter()
+                .filter(|c| names.iter().any(|n| c.name.contains(n.as_str())))
+                .map(|c| {
+                    format!(
+                        "{} = {} ({} to {})",
+                        c.name,
+                        sig(c.value),
+                        sig(c.ci95[0]),
+                        sig(c.ci95[1])
+                    )
+                })
+                .collect();
+            let mut s = format!(
+                "not identified alone: {} (the tips do not change when they move together); \
+                 they are kept at the nominal along that direction",
+                names.join(", ")
+            );
+            if !ids.is_empty() {
+                s += &format!(
+                    "; only {} identified: {}",
+                    if ids.len() == 1 {
+                        "this is"
+                    } else {
+                        "these are"
+                    },
+                    ids.join("; ")
+                );
+            }
+            out.push(s);
+        }
+        out
+    }
+
+    /// The `ci95` of block `b` (its parameters from `at`): the file form of
+    /// [`parameters`] with each number replaced by `[lo, hi]` (`null` where unbounded).
+    pub fn ci95(&self, problem: &Problem, b: EffectId, at: usize, len: usize) -> Value {
+        let model = problem.model(&self.x);
+        let template = parameters(b, &model);
+        let mut v0 = Vec::new();
+        leaves(&template, "", &mut v0);
+        let out = |x: &[f64]| -> Vec<f64> {
+            let mut v = Vec::new();
+            leaves(&parameters(b, &problem.model(x)), "", &mut v);
+            v.into_iter().map(|(_, v)| v).collect()
+        };
+        let base: Vec<f64> = v0.iter().map(|(_, v)| *v).collect();
+        let degrees: Vec<bool> = v0.iter().map(|(k, _)| k.contains("_deg")).collect();
+        let unwrap = |o: usize, v: f64| -> f64 {
+            if degrees[o] {
+                base[o] + (v - base[o] + 180.0).rem_euclid(360.0) - 180.0
+            } else {
+                v
+            }
+        };
+        // derivatives of the file values with respect to the block's parameters
+        let mut g = DMatrix::<f64>::zeros(base.len(), len);
+        for j in 0..len {
+            let h = OUTPUT_STEP * self.steps[at + j];
+            let mut x = self.x.clone();
+            x[at + j] += h;
+            for (o, v) in out(&x).into_iter().enumerate().take(base.len()) {
+                g[(o, j)] = (unwrap(o, v) - base[o]) / h;
+            }
+        }
+        let mut ints: Vec<[Option<f64>; 2]> = Vec::with_capacity(base.len());
+        for o in 0..base.len() {
+            let row = g.row(o);
+            let big = row.amax();
+            let deps: Vec<usize> = (0..len)
+                .filter(|&j| big > 0.0 && row[j].abs() > 1e-9 * big)
+                .collect();
+            let finite = |v: f64| v.is_finite().then_some(v);
+            let int = match deps.as_slice() {
+                [] => [Some(base[o]), Some(base[o])],
+                [j] => {
+                    let (lo, hi) = self.interval(at + j);
+                    let mut ends = vec![base[o]];
+                    let mut open = false;
+                    for end in [lo, hi] {
+                        if end.is_finite() {
+                            let mut x = self.x.clone();
+                            x[at + j] = end;
+                            ends.push(unwrap(o, out(&x)[o]));
+                        } else {
+                            open = true;
+                        }
+                    }
+                    if open {
+                        [None, None]
+                    } else {
+                        let lo = ends.iter().copied().fold(f64::INFINITY, f64::min);
+                        let hi = ends.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                        [finite(lo), finite(hi)]
+                    }
+                }
+                _ if deps.iter().any(|&j| self.unidentified[at + j]) => [None, None],
+                _ => {
+                    let gr = row.transpose();
+                    let sub = self.cov.view((at, at), (len, len));
+                    let half = self.t * (gr.transpose() * sub * &gr)[(0, 0)].max(0.0).sqrt();
+                    [finite(base[o] - half), finite(base[o] + half)]
+                }
+            };
+            ints.push(int);
+        }
+        let mut it = ints.into_iter();
+        replace(&template, &mut it)
+    }
+}
+
+/// What the report says about the uncertainty as a whole.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Overall {
+    pub method: String,
+    pub identifiability: Vec<String>,
+    pub correlated: Vec<Correlated>,
+}
+
+/// The fit problem of the findings `effects` of `fitted` (torsion has no parameter; a
+/// clearance fitted as a table stays one).
+pub(crate) fn problem_of<'a>(
+    rec: &'a Recording,
+    fitted: &ModelSpec,
+    effects: &[EffectId],
+    rows: &[usize],
+    huber_mm: f64,
+    threads: usize,
+) -> Problem<'a> {
+    let blocks: Vec<EffectId> = effects
+        .iter()
+        .copied()
+        .filter(|e| *e != EffectId::Torsion)
+        .collect();
+    let clearance_table = fitted
+        .effects
+        .clearance
+        .as_ref()
+        .filter(|c| !c.table_deg.is_empty() && blocks.contains(&EffectId::Clearance))
+        .and_then(|c| c.table_deg.first().map(Vec::len));
+    Problem {
+        base: fitted.clone(),
+        blocks,
+        rec,
+        runs: (0..rec.runs.len()).collect(),
+        rows: rows.to_vec(),
+        huber_mm,
+        threads,
+        clearance_table,
+    }
+}
+
+/// Gives every finding its `ci95` (and `identified` combinations), at `fitted` against
+/// the user's model `user`; returns the model with what is not identified set to the
+/// nominal (the findings' parameters rewritten from it) and the report's overall words.
+pub(crate) fn attach(
+    problem: &Problem,
+    user: &ModelSpec,
+    findings: &mut [Finding],
+) -> (ModelSpec, Overall, Option<Assessment>) {
+    let x = problem.read(&problem.base);
+    let nominal = problem.read(user);
+    let Some(a) = Assessment::new(problem, &x, &nominal) else {
+        for f in findings.iter_mut() {
+            f.ci95 = Value::Null;
+        }
+        let overall = Overall {
+            method: if x.is_empty() {
+                "no fitted parameter".into()
+            } else {
+                "not computed: the fitted model cannot be simulated for the Jacobian".into()
+            },
+            identifiability: Vec::new(),
+            correlated: Vec::new(),
+        };
+        return (problem.base.clone(), overall, None);
+    };
+    let model = problem.model(&a.x);
+    let mut at = 0;
+    let mut ranges = Vec::new();
+    for &b in &problem.blocks {
+        let len = problem.block_len(b);
+        ranges.push((b, at, len));
+        at += len;
+    }
+    let effect_of = |j: usize| {
+        ranges
+            .iter()
+            .find(|(_, at, len)| j >= *at && j < at + len)
+            .map_or(EffectId::Torsion, |r| r.0)
+    };
+    let combos = a.combinations(effect_of);
+    for f in findings.iter_mut() {
+        f.parameters = parameters(f.effect, &model);
+        f.explanation = explain(f.effect, &model);
+        let Some(&(b, at, len)) = ranges.iter().find(|r| r.0 == f.effect) else {
+            f.ci95 = f.parameters.clone();
+            continue;
+        };
+        let mut ci = a.ci95(problem, b, at, len);
+        let mine: Vec<Value> = combos
+            .iter()
+            .filter(|c| c.effect == b)
+            .map(|c| serde_json::json!({"combination": c.name, "value": c.value, "ci95": c.ci95}))
+            .collect();
+        if let (false, Value::Object(m)) = (mine.is_empty(), &mut ci) {
+            m.insert("identified".into(), Value::Array(mine));
+        }
+        f.ci95 = ci;
+        let words: Vec<String> = combos
+            .iter()
+            .filter(|c| c.effect == b)
+            .map(|c| {
+                format!(
+                    "{} = {} ({} to {})",
+                    c.name,
+                    sig(c.value),
+                    sig(c.ci95[0]),
+                    sig(c.ci95[1])
+                )
+            })
+            .collect();
+        if !words.is_empty() {
+            f.explanation += &format!(
+                " The data identify only {}; the values alone are not identified (kept at \
+                 the nominal along the direction the data cannot see).",
+                words.join(", ")
+            );
+        }
+    }
+    let overall = Overall {
+        method: a.method.clone(),
+        identifiability: a.statements(&combos),
+        correlated: a.correlated(),
+    };
+    (model, overall, Some(a))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn t_quantile_matches_tables() {
+        // Student's t, 97.5 %: 10 -> 2.228, 30 -> 2.042, 120 -> 1.980
+        for (dof, want) in [(3, 3.182), (10, 2.228), (30, 2.042), (120, 1.980)] {
+            assert!((t975(dof) - want).abs() < 2e-3, "{dof}: {}", t975(dof));
+        }
+        assert!((t975(100_000) - 1.95996).abs() < 1e-4);
+    }
+}
