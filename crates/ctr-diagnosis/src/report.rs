@@ -418,11 +418,10 @@ pub(crate) fn intervals(params: &serde_json::Value, ci95: &serde_json::Value) ->
     let end = |v: Option<&(String, f64)>| v.map_or("?".to_string(), |(_, v)| sig(*v));
     let mut parts: Vec<String> = values
         .iter()
-        .enumerate()
-        .map(|(k, (name, v))| {
+        .map(|(name, v)| {
             let lo = bounds.iter().find(|(p, _)| *p == format!("{name}[0]"));
             let hi = bounds.iter().find(|(p, _)| *p == format!("{name}[1]"));
-            if lo.is_none() && hi.is_none() && bounds.len() < 2 * values.len() && k < values.len() {
+            if lo.is_none() && hi.is_none() {
                 format!("{name} {} (not bounded)", sig(*v))
             } else {
                 format!("{name} {} ({} to {})", sig(*v), end(lo), end(hi))

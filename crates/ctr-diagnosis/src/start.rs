@@ -112,9 +112,8 @@ impl Start {
         let (fitted, overall, assessment) =
             uncertainty::attach(&problem, &self.user, &mut findings);
         let fit_share = self.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
-        let nominal = problem.read(&self.user);
-        let next = assessment
-            .and_then(|a| suggest::next_run(&problem, &a, &nominal, fit_share, sample_period(rec)));
+        let next =
+            assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
         let (suggested_run, suggested_joints) = next.unzip();
         let again = estimate_noise(rec, e);
         let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis

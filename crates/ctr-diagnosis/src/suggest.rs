@@ -28,9 +28,8 @@
 use crate::fit::Problem;
 use crate::numbers::sig;
 use crate::report::{ExpectedInterval, JointRun, SuggestedRun};
-use crate::uncertainty::{pseudo_inverse, Assessment, CORRELATED_ABOVE};
+use crate::uncertainty::{parts, pseudo_inverse, Assessment, CORRELATED_ABOVE};
 use ctr_formats::{RecordedRow, Recording, Run};
-use nalgebra::DMatrix;
 
 /// An interval wider than this many times the parameter's distance from its nominal
 /// makes it uncertain.
@@ -46,6 +45,13 @@ pub const SUGGESTED_ROWS: usize = 120;
 const REVERSALS: usize = 4;
 /// Sample period used when the recording has no time, s.
 const DEFAULT_PERIOD_S: f64 = 0.1;
+
+/// The joint a candidate run moves: a tube's feed increment or its rotation.
+#[derive(Clone, Copy)]
+enum Slot {
+    Feed(usize),
+    Turn(usize),
+}
 
 /// A candidate run in words and its joints.
 struct Candidate {
@@ -104,6 +110,20 @@ fn candidates(rec: &Recording) -> Vec<Candidate> {
     let mid_inc: Vec<f64> = (0..n).map(|k| 0.5 * (lo_inc[k] + hi_inc[k])).collect();
     let mid_th: Vec<f64> = (0..n).map(|k| 0.5 * (lo_th[k] + hi_th[k])).collect();
     let rows = SUGGESTED_ROWS;
+    // the middle configuration with one feed increment or rotation set to each value
+    let sweep = |inc: &[f64], slot: Slot, values: Vec<f64>| -> Vec<Vec<f64>> {
+        values
+            .into_iter()
+            .map(|v| {
+                let (mut inc, mut th) = (inc.to_vec(), mid_th.clone());
+                match slot {
+                    Slot::Feed(k) => inc[k] = v,
+                    Slot::Turn(k) => th[k] = v,
+                }
+                joints(&inc, &th)
+            })
+            .collect()
+    };
     let mut out = Vec::new();
     for k in 0..n {
         if hi_th[k] > lo_th[k] {
@@ -115,14 +135,11 @@ fn candidates(rec: &Recording) -> Vec<Candidate> {
                     lo_th[k],
                     hi_th[k]
                 ),
-                q: out_and_back(lo_th[k], hi_th[k], rows)
-                    .into_iter()
-                    .map(|t| {
-                        let mut th = mid_th.clone();
-                        th[k] = t;
-                        joints(&mid_inc, &th)
-                    })
-                    .collect(),
+                q: sweep(
+                    &mid_inc,
+                    Slot::Turn(k),
+                    out_and_back(lo_th[k], hi_th[k], rows),
+                ),
             });
         }
         if hi_inc[k] > lo_inc[k] {
@@ -133,14 +150,11 @@ fn candidates(rec: &Recording) -> Vec<Candidate> {
                     lo_inc[k],
                     hi_inc[k]
                 ),
-                q: out_and_back(lo_inc[k], hi_inc[k], rows)
-                    .into_iter()
-                    .map(|d| {
-                        let mut inc = mid_inc.clone();
-                        inc[k] = d;
-                        joints(&inc, &mid_th)
-                    })
-                    .collect(),
+                q: sweep(
+                    &mid_inc,
+                    Slot::Feed(k),
+                    out_and_back(lo_inc[k], hi_inc[k], rows),
+                ),
             });
         }
     }
@@ -152,32 +166,28 @@ fn candidates(rec: &Recording) -> Vec<Candidate> {
                  increment at its largest)",
                 lo_th[last], hi_th[last]
             ),
-            q: out_and_back(lo_th[last], hi_th[last], rows)
-                .into_iter()
-                .map(|t| {
-                    let mut th = mid_th.clone();
-                    th[last] = t;
-                    joints(&hi_inc, &th)
-                })
-                .collect(),
+            q: sweep(
+                &hi_inc,
+                Slot::Turn(last),
+                out_and_back(lo_th[last], hi_th[last], rows),
+            ),
         });
         let quarter = 0.25 * (hi_th[last] - lo_th[last]);
         let leg = rows / (2 * REVERSALS);
+        let back_and_forth = (0..rows)
+            .map(|i| {
+                let phase = (i % (2 * leg)) as f64 / leg as f64;
+                let u = if phase <= 1.0 { phase } else { 2.0 - phase };
+                mid_th[last] + quarter * (u - 0.5)
+            })
+            .collect();
         out.push(Candidate {
             name: format!(
                 "reverse tube {n}'s rotation {REVERSALS} times over {quarter:.0} deg about \
                  {:.0} deg",
                 mid_th[last]
             ),
-            q: (0..rows)
-                .map(|i| {
-                    let phase = (i % (2 * leg)) as f64 / leg as f64;
-                    let u = if phase <= 1.0 { phase } else { 2.0 - phase };
-                    let mut th = mid_th.clone();
-                    th[last] = mid_th[last] + quarter * (u - 0.5);
-                    joints(&mid_inc, &th)
-                })
-                .collect(),
+            q: sweep(&mid_inc, Slot::Turn(last), back_and_forth),
         });
     }
     out.push(Candidate {
@@ -215,8 +225,8 @@ fn as_recording(rec: &Recording, name: &str, q: &[Vec<f64>], period_s: f64) -> R
 }
 
 /// The parameters of `a` that are uncertain (see the module doc).
-fn uncertain(a: &Assessment, nominal: &[f64]) -> Vec<usize> {
-    let np = a.x.len();
+fn uncertain(a: &Assessment) -> Vec<usize> {
+    let (np, nominal) = (a.x.len(), &a.nominal);
     // a parameter's size: its distance from the nominal, or the RMS distance of its
     // effect's parameters of the same unit (a gravity component near zero is small
     // beside the gravity, not poorly identified)
@@ -237,8 +247,7 @@ fn uncertain(a: &Assessment, nominal: &[f64]) -> Vec<usize> {
             let confused = (0..np).any(|i| {
                 a.effects[i] != a.effects[j]
                     && !a.unidentified[i]
-                    && (a.cov[(i, j)] / (a.cov[(i, i)] * a.cov[(j, j)]).sqrt()).abs()
-                        > CORRELATED_ABOVE
+                    && a.correlation(i, j).abs() > CORRELATED_ABOVE
             });
             confused || a.t * a.cov[(j, j)].sqrt() > WIDE * size(j)
         })
@@ -251,11 +260,10 @@ fn uncertain(a: &Assessment, nominal: &[f64]) -> Vec<usize> {
 pub(crate) fn next_run(
     problem: &Problem,
     a: &Assessment,
-    nominal: &[f64],
     fit_share: f64,
     period_s: f64,
 ) -> Option<(SuggestedRun, JointRun)> {
-    let targets = uncertain(a, nominal);
+    let targets = uncertain(a);
     if targets.is_empty() {
         return None;
     }
@@ -265,18 +273,7 @@ pub(crate) fn next_run(
     } else {
         DEFAULT_PERIOD_S
     };
-    let diag = |h: &DMatrix<f64>| -> Vec<f64> {
-        (0..np)
-            .map(|j| {
-                if h[(j, j)] > 0.0 {
-                    1.0 / h[(j, j)].sqrt()
-                } else {
-                    1.0
-                }
-            })
-            .collect()
-    };
-    let (h_pinv, _) = pseudo_inverse(&a.information, &diag(&a.information));
+    let (h_pinv, _, _) = pseudo_inverse(&a.information);
     // the covariance's scale over the classical one (for parameters identified anew)
     let mut scales: Vec<f64> = (0..np)
         .filter(|&j| !a.unidentified[j] && h_pinv[(j, j)] > 0.0)
@@ -306,15 +303,11 @@ pub(crate) fn next_run(
         let rows = 3 * rec.rows.len();
         let jr = jac.rows(0, rows);
         let h_new = &a.information + (jr.transpose() * jr) * fit_share;
-        let (pinv_new, null_new) = pseudo_inverse(&h_new, &diag(&h_new));
-        let still: Vec<bool> = (0..np)
-            .map(|j| {
-                null_new.iter().any(|v| {
-                    let big = v.amax();
-                    big > 0.0 && v[j].abs() >= 0.05 * big
-                })
-            })
-            .collect();
+        let (pinv_new, null_new, _) = pseudo_inverse(&h_new);
+        let mut still = vec![false; np];
+        for j in null_new.iter().flat_map(parts) {
+            still[j] = true;
+        }
         let mut score = 0.0;
         let mut var = Vec::with_capacity(targets.len());
         for &j in &targets {

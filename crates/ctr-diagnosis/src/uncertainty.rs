@@ -78,11 +78,26 @@ pub(crate) struct Combination {
     pub ci95: [f64; 2],
 }
 
+impl Combination {
+    /// `name = value (lo to hi)`.
+    fn words(&self) -> String {
+        format!(
+            "{} = {} ({} to {})",
+            self.name,
+            sig(self.value),
+            sig(self.ci95[0]),
+            sig(self.ci95[1])
+        )
+    }
+}
+
 /// The uncertainty of a fit: covariance, intervals, what is not identified.
 #[derive(Clone, Debug)]
 pub(crate) struct Assessment {
     /// The fitted parameters (set to the nominal along directions not identified).
     pub x: Vec<f64>,
+    /// The parameters' nominal values (the user's model).
+    pub nominal: Vec<f64>,
     pub labels: Vec<Label>,
     /// The effect each parameter belongs to.
     pub effects: Vec<EffectId>,
@@ -121,11 +136,22 @@ fn t975(dof: usize) -> f64 {
     }
 }
 
-/// The pseudo-inverse of the information `h` on its identified directions, scaled by
-/// `d` (`D h D` has a unit diagonal), and the directions not identified (scaled).
-pub(crate) fn pseudo_inverse(h: &DMatrix<f64>, d: &[f64]) -> (DMatrix<f64>, Vec<DVector<f64>>) {
-    let np = d.len();
-    let dm = DMatrix::from_diagonal(&DVector::from_column_slice(d));
+/// The pseudo-inverse of the information `h` on its identified directions, computed
+/// scaled to a unit diagonal (`D h D`, `D = diag(h_jj)^(-1/2)`; a parameter that moves
+/// nothing keeps `d_j = 1` and is not identified), with the directions not identified
+/// (scaled) and the scale `d`.
+pub(crate) fn pseudo_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, Vec<DVector<f64>>, Vec<f64>) {
+    let np = h.nrows();
+    let d: Vec<f64> = (0..np)
+        .map(|j| {
+            if h[(j, j)] > 0.0 {
+                1.0 / h[(j, j)].sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
     let s = &dm * h * &dm;
     let eig = s.symmetric_eigen();
     let lmax = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
@@ -139,7 +165,16 @@ pub(crate) fn pseudo_inverse(h: &DMatrix<f64>, d: &[f64]) -> (DMatrix<f64>, Vec<
             null.push(v);
         }
     }
-    (&dm * s_pinv * &dm, null)
+    (&dm * s_pinv * &dm, null, d)
+}
+
+/// The parameters taking part in a direction `u` not identified: components of at
+/// least [`PART_OF_DIRECTION`] of its largest.
+pub(crate) fn parts(u: &DVector<f64>) -> Vec<usize> {
+    let big = u.amax();
+    (0..u.len())
+        .filter(|&j| big > 0.0 && u[j].abs() >= PART_OF_DIRECTION * big)
+        .collect()
 }
 
 /// Consecutive fit rows of one run, in order (`rows` sorted).
@@ -202,18 +237,8 @@ impl Assessment {
                 h += (ji.transpose() * ji) * *wr;
             }
         }
-        // scaled to a unit diagonal; a parameter that moves nothing is not identified
-        let d: Vec<f64> = (0..np)
-            .map(|j| {
-                if h[(j, j)] > 0.0 {
-                    1.0 / h[(j, j)].sqrt()
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        let (h_pinv, null_scaled) = pseudo_inverse(&h, &d);
-        let dm = DMatrix::from_diagonal(&DVector::from_vec(d.clone()));
+        let (h_pinv, null_scaled, d) = pseudo_inverse(&h);
+        let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
         let identified = np - null_scaled.len();
         // classical: the weighted residual variance per component
         let data = 3 * rows;
@@ -271,13 +296,8 @@ impl Assessment {
         // directions not identified, in the parameters' units; set to the nominal
         let null: Vec<DVector<f64>> = null_scaled.iter().map(|v| &dm * v).collect();
         let mut unidentified: Vec<bool> = (0..np).map(|j| h[(j, j)] <= 0.0).collect();
-        for u in &null {
-            let big = u.amax();
-            for j in 0..np {
-                if big > 0.0 && u[j].abs() >= PART_OF_DIRECTION * big {
-                    unidentified[j] = true;
-                }
-            }
+        for j in null.iter().flat_map(parts) {
+            unidentified[j] = true;
         }
         let mut xs = x.to_vec();
         if !null_scaled.is_empty() {
@@ -314,6 +334,7 @@ impl Assessment {
         );
         Some(Assessment {
             x: xs,
+            nominal: nominal.to_vec(),
             labels: (0..np).map(|j| problem.label(j)).collect(),
             effects: (0..np).map(|j| problem.effect_of(j)).collect(),
             bounds: (0..np).map(|j| problem.scale(j).1).collect(),
@@ -337,6 +358,11 @@ impl Assessment {
         ((self.x[j] - half).max(lo), (self.x[j] + half).min(hi))
     }
 
+    /// The correlation of fitted parameters `i` and `j`.
+    pub fn correlation(&self, i: usize, j: usize) -> f64 {
+        self.cov[(i, j)] / (self.cov[(i, i)] * self.cov[(j, j)]).sqrt()
+    }
+
     /// Pairs of identified parameters correlated above [`CORRELATED_ABOVE`].
     pub fn correlated(&self) -> Vec<Correlated> {
         let np = self.x.len();
@@ -346,7 +372,7 @@ impl Assessment {
                 if self.unidentified[i] || self.unidentified[j] {
                     continue;
                 }
-                let r = self.cov[(i, j)] / (self.cov[(i, i)] * self.cov[(j, j)]).sqrt();
+                let r = self.correlation(i, j);
                 if r.abs() > CORRELATED_ABOVE {
                     out.push(Correlated {
                         a: self.labels[i].name.clone(),
@@ -359,16 +385,13 @@ impl Assessment {
         out
     }
 
-    /// The combinations the data identify across each direction they do not, with the
-    /// finding each belongs to (`effect_of` maps a parameter to its block's effect).
-    pub fn combinations(&self, effect_of: impl Fn(usize) -> EffectId) -> Vec<Combination> {
+    /// The combinations the data identify across each direction they do not, each with
+    /// the finding of its first parameter.
+    pub fn combinations(&self) -> Vec<Combination> {
         let mut out = Vec::new();
         for u in &self.null {
-            let big = u.amax();
-            let part: Vec<usize> = (0..u.len())
-                .filter(|&j| u[j].abs() >= PART_OF_DIRECTION * big)
-                .collect();
-            let Some(&r) = part.iter().find(|&&j| u[j].abs() >= 0.5 * big) else {
+            let part = parts(u);
+            let Some(&r) = part.iter().find(|&&j| u[j].abs() >= 0.5 * u.amax()) else {
                 continue;
             };
             for &j in part.iter().filter(|&&j| j != r) {
@@ -410,7 +433,7 @@ impl Assessment {
                     (name, value, [value - half, value + half])
                 };
                 out.push(Combination {
-                    effect: effect_of(j),
+                    effect: self.effects[j],
                     name,
                     value,
                     ci95,
@@ -424,23 +447,14 @@ impl Assessment {
     pub fn statements(&self, combos: &[Combination]) -> Vec<String> {
         let mut out = Vec::new();
         for u in &self.null {
-            let big = u.amax();
-            let names: Vec<String> = (0..u.len())
-                .filter(|&j| u[j].abs() >= PART_OF_DIRECTION * big)
+            let names: Vec<String> = parts(u)
+                .into_iter()
                 .map(|j| self.labels[j].name.clone())
                 .collect();
             let ids: Vec<String> = combos
                 .iter()
                 .filter(|c| names.iter().any(|n| c.name.contains(n.as_str())))
-                .map(|c| {
-                    format!(
-                        "{} = {} ({} to {})",
-                        c.name,
-                        sig(c.value),
-                        sig(c.ci95[0]),
-                        sig(c.ci95[1])
-                    )
-                })
+                .map(Combination::words)
                 .collect();
             let mut s = format!(
                 "not identified alone: {} (the tips do not change when they move together); \
@@ -614,13 +628,7 @@ pub(crate) fn attach(
         ranges.push((b, at, len));
         at += len;
     }
-    let effect_of = |j: usize| {
-        ranges
-            .iter()
-            .find(|(_, at, len)| j >= *at && j < at + len)
-            .map_or(EffectId::Torsion, |r| r.0)
-    };
-    let combos = a.combinations(effect_of);
+    let combos = a.combinations();
     for f in findings.iter_mut() {
         f.parameters = parameters(f.effect, &model);
         f.explanation = explain(f.effect, &model);
@@ -641,15 +649,7 @@ pub(crate) fn attach(
         let words: Vec<String> = combos
             .iter()
             .filter(|c| c.effect == b)
-            .map(|c| {
-                format!(
-                    "{} = {} ({} to {})",
-                    c.name,
-                    sig(c.value),
-                    sig(c.ci95[0]),
-                    sig(c.ci95[1])
-                )
-            })
+            .map(Combination::words)
             .collect();
         if !words.is_empty() {
             f.explanation += &format!(
