@@ -87,6 +87,8 @@ pub(crate) struct Newton<T, const M: usize> {
     have_jacobian: bool,
     prev_norm: T,
     last_step: [T; M],
+    /// the residual the last step was taken from (for the chord's Broyden update)
+    last_r: Option<[T; M]>,
     damping: T,
     /// On the coarse steps of a cold start.
     pub coarse: bool,
@@ -104,6 +106,7 @@ impl<T: Real, const M: usize> Newton<T, M> {
             have_jacobian: false,
             prev_norm: huge,
             last_step: [T::zero(); M],
+            last_r: None,
             damping: T::one(),
             coarse,
         }
@@ -156,6 +159,7 @@ impl<T: Real, const M: usize> Newton<T, M> {
                 for i in 0..m {
                     self.x[i] += self.last_step[i] * self.damping;
                 }
+                self.last_r = None;
                 continue;
             }
             let refresh = !policy.chord
@@ -172,7 +176,10 @@ impl<T: Real, const M: usize> Newton<T, M> {
                 };
                 self.jacobian = j;
                 self.have_jacobian = true;
+            } else if let Some(r0) = self.last_r {
+                broyden(&mut self.jacobian, &r0, &ev.r, &self.last_step, m);
             }
+            self.last_r = Some(ev.r);
             let Some(dx) = solve_linear::<T, M>(self.jacobian, ev.r, m) else {
                 return Stop::Diverged;
             };
@@ -199,6 +206,37 @@ impl<T: Real, const M: usize> Newton<T, M> {
     /// True when every unknown is finite.
     pub fn finite(&self) -> bool {
         self.x.iter().all(|v| v.is_finite())
+    }
+}
+
+/// Broyden's ("good") rank-one update of a chord Jacobian `j` (rows: residuals) after
+/// the step `x <- x - dx` took the residual from `r0` to `r1`: the secant condition
+/// `J' (-dx) = r1 - r0`, changing `J` least. Keeps a chord iteration superlinear
+/// without a new derivative pass.
+fn broyden<T: Real, const M: usize>(
+    j: &mut [[T; M]; M],
+    r0: &[T; M],
+    r1: &[T; M],
+    dx: &[T; M],
+    m: usize,
+) {
+    let mut dd = T::zero();
+    for k in 0..m {
+        dd += dx[k] * dx[k];
+    }
+    if dd <= T::zero() || !dd.is_finite() {
+        return;
+    }
+    for i in 0..m {
+        // (dr - J ds) with ds = -dx
+        let mut js = T::zero();
+        for k in 0..m {
+            js -= j[i][k] * dx[k];
+        }
+        let u = (r1[i] - r0[i] - js) / dd;
+        for k in 0..m {
+            j[i][k] -= u * dx[k];
+        }
     }
 }
 
