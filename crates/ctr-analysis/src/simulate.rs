@@ -69,6 +69,55 @@ pub struct Prediction {
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Prediction, SimError> {
+    simulate(model, rec, runs, |_| true)
+}
+
+/// Simulates only the rows `rows` (indices into `rec.rows`, ascending) of a
+/// recording: the time effects still run along each whole run that holds one of them
+/// (they remember), but only these rows are solved, each warm-started from the last
+/// solved row of its run. Every other row of [`Prediction::p`] is `NaN`. What a fit
+/// that counts some rows needs, at the cost of those rows alone.
+///
+/// ```
+/// use ctr_analysis::{model::ModelSpec, simulate::{predict, predict_rows}};
+/// use ctr_formats::{Recording, RobotSpec};
+/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+///     length_mm = 260.0\ncurved_length_mm = 0.0\n\
+///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+/// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n50,0,0,0,50\n60,0,0,0,60\n".as_bytes(), "rec.csv", 1)?;
+/// let model = ModelSpec::from_spec(&spec);
+/// let some = predict_rows(&model, &rec, &[1]).unwrap();
+/// assert!(some.p[0][2].is_nan());
+/// assert_eq!(some.p[1], predict(&model, &rec, &[0]).unwrap().p[1]);
+/// # Ok::<(), ctr_formats::Error>(())
+/// ```
+pub fn predict_rows(
+    model: &ModelSpec,
+    rec: &Recording,
+    rows: &[usize],
+) -> Result<Prediction, SimError> {
+    let runs: Vec<usize> = (0..rec.runs.len())
+        .filter(|&r| {
+            let range = &rec.runs[r].rows;
+            // the first listed row at or after the run's start lies inside it
+            let at = rows.partition_point(|&row| row < range.start);
+            rows.get(at).is_some_and(|row| range.contains(row))
+        })
+        .collect();
+    let mut keep = vec![false; rec.rows.len()];
+    for &r in rows {
+        keep[r] = true;
+    }
+    simulate(model, rec, &runs, |row| keep[row])
+}
+
+/// The runs `runs` simulated, the rows `keep` says solved.
+fn simulate(
+    model: &ModelSpec,
+    rec: &Recording,
+    runs: &[usize],
+    keep: impl Fn(usize) -> bool,
+) -> Result<Prediction, SimError> {
     let rows = model.rows().map_err(SimError::Model)?;
     let mut out = Prediction {
         p: vec![[f64::NAN; 3]; rec.rows.len()],
@@ -86,6 +135,9 @@ pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Pre
         });
         let mut solver = rows.solver();
         for (k, row) in range.enumerate() {
+            if !keep(row) {
+                continue;
+            }
             let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
             let r = &rec.rows[row];
             let tip = solver
