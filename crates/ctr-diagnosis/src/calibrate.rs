@@ -56,7 +56,6 @@ pub fn calibrate(
         base: model.clone(),
         blocks: blocks.clone(),
         rec,
-        runs: start.all_runs.clone(),
         rows: start.fit_rows.clone(),
         huber_mm: start.huber_mm(),
         threads: ctr_formats::parallel::resolve_threads(opt.threads),

@@ -18,7 +18,7 @@
 
 use crate::candidates::EffectId;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::predict_rows;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 
@@ -30,9 +30,7 @@ pub(crate) struct Problem<'a> {
     /// The effects fitted, their parameters concatenated in this order.
     pub blocks: Vec<EffectId>,
     pub rec: &'a Recording,
-    /// Runs simulated (those that hold `rows`).
-    pub runs: Vec<usize>,
-    /// Rows whose residuals count.
+    /// Rows whose residuals count, ascending (only they are solved).
     pub rows: Vec<usize>,
     /// Huber threshold on a row's error norm, mm.
     pub huber_mm: f64,
@@ -104,7 +102,15 @@ pub(crate) struct Fitted {
     pub x: Vec<f64>,
     /// Robust cost (sum over rows of rho), mm^2.
     pub cost: f64,
+    /// The fit stopped because the cost could not reach its target (see
+    /// [`Problem::fit_until`]): `cost` is where it stopped, not a minimum.
+    pub gave_up: bool,
 }
+
+/// How many times the Gauss-Newton model's decrease the rest of a fit may still gain
+/// before [`Problem::fit_until`] gives up on a target: the model is exact for a linear
+/// problem and near a minimum, and this margin covers its error further out.
+const PROJECTED_GAIN_MARGIN: f64 = 4.0;
 
 impl Problem<'_> {
     pub fn n_tubes(&self) -> usize {
@@ -199,10 +205,10 @@ impl Problem<'_> {
         unreachable!("parameter index within the blocks")
     }
 
-    /// Predictions of the counted rows, 3 per row; `None` where the model cannot be
-    /// simulated (joints pushed out of range, ...).
+    /// Predictions of the counted rows, 3 per row (only they are solved); `None` where
+    /// the model cannot be simulated on them (joints pushed out of range, ...).
     pub fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
-        let pred = predict(&self.model(x), self.rec, &self.runs).ok()?;
+        let pred = predict_rows(&self.model(x), self.rec, &self.rows).ok()?;
         let mut out = Vec::with_capacity(3 * self.rows.len());
         for &r in &self.rows {
             out.extend_from_slice(&pred.p[r]);
@@ -300,6 +306,15 @@ impl Problem<'_> {
     /// Levenberg-Marquardt from `x0` (clamped to the bounds) for at most `max_iter`
     /// Jacobians; `None` if the start cannot be simulated.
     pub fn fit(&self, x0: &[f64], max_iter: usize) -> Option<Fitted> {
+        self.fit_until(x0, max_iter, None)
+    }
+
+    /// [`fit`](Self::fit) that gives up when the cost cannot come below `target`
+    /// (mm^2): at each Jacobian, the weighted Gauss-Newton model's decrease
+    /// `g^T H^-1 g` (`H = J^T W J`, `g = J^T W e`) is what the linearised problem can
+    /// still gain; when the cost less [`PROJECTED_GAIN_MARGIN`] times that stays above
+    /// the target, going on would only confirm that it is not reached.
+    pub fn fit_until(&self, x0: &[f64], max_iter: usize, target: Option<f64>) -> Option<Fitted> {
         let np = x0.len();
         let bounds: Vec<(f64, f64)> = (0..np).map(|j| self.scale(j).1).collect();
         let mut x: Vec<f64> = x0
@@ -311,7 +326,11 @@ impl Problem<'_> {
         let mut e = self.errors(&p);
         let (mut cost, mut w) = self.cost(&e);
         if np == 0 {
-            return Some(Fitted { x, cost });
+            return Some(Fitted {
+                x,
+                cost,
+                gave_up: false,
+            });
         }
         let mut lambda: f64 = 1e-3;
         for _ in 0..max_iter {
@@ -345,6 +364,15 @@ impl Problem<'_> {
             let dmax = (0..np).map(|j| h[(j, j)]).fold(0.0, f64::max);
             if dmax <= 0.0 {
                 break;
+            }
+            if let Some(target) = target {
+                if cost - PROJECTED_GAIN_MARGIN * projected_gain(&h, &g, dmax) > target {
+                    return Some(Fitted {
+                        x,
+                        cost,
+                        gave_up: true,
+                    });
+                }
             }
             let mut improved = false;
             for _ in 0..12 {
@@ -382,8 +410,22 @@ impl Problem<'_> {
                 break;
             }
         }
-        Some(Fitted { x, cost })
+        Some(Fitted {
+            x,
+            cost,
+            gave_up: false,
+        })
     }
+}
+
+/// The Gauss-Newton model's decrease `g^T H^-1 g` of the weighted sum of squares
+/// (`H` regularised by a relative `1e-9` of its largest diagonal where singular).
+pub(crate) fn projected_gain(h: &DMatrix<f64>, g: &DVector<f64>, dmax: f64) -> f64 {
+    let mut a = h.clone();
+    for j in 0..a.nrows() {
+        a[(j, j)] += 1e-9 * dmax;
+    }
+    a.cholesky().map_or(f64::INFINITY, |c| g.dot(&c.solve(g)))
 }
 
 /// The damped step `a d = -g`, inside the bounds (a box QP when the plain step leaves

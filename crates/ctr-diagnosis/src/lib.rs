@@ -75,6 +75,7 @@ mod options;
 mod prose;
 mod report;
 mod residual;
+mod screen;
 mod search;
 mod split;
 mod start;

@@ -1,6 +1,8 @@
-//! The search: forward selection over the effects the model leaves out, each round every
-//! remaining candidate fitted (on the thread pool) with the effects found so far, the
-//! best added when the information criterion and the held-out rows both accept it.
+//! The search: forward selection over the effects the model leaves out. Each round
+//! every remaining candidate is screened (fitted alone beside the effects found so far,
+//! [`crate::screen`]), then the most promising are fitted in full with the effects
+//! found so far free, and of those the information criterion and the held-out rows
+//! both accept, the best on the held-out rows is added.
 
 use crate::candidates::{not_applicable, EffectId};
 use crate::error::DiagnoseError;
@@ -10,6 +12,7 @@ use crate::options::Options;
 use crate::prose::{explain, parameters};
 use crate::report::{Diagnosis, Figures, Finding, Trial, REMOVED};
 use crate::residual::{errors, figures, tips};
+use crate::screen::{Screen, Screened, FULL_FITS};
 use crate::start::{sample_period, Start};
 use crate::verify;
 use ctr_analysis::model::ModelSpec;
@@ -19,7 +22,10 @@ use ctr_formats::Recording;
 /// Smallest relative drop of the held-out RMS for an effect to be added.
 pub const MIN_HELDOUT_GAIN: f64 = 0.02;
 
-/// The best candidate of a round so far.
+/// Why a candidate has no figures.
+const CANNOT_SIMULATE: &str = "the model cannot be simulated with this effect";
+
+/// The candidate of a round that is added.
 struct Best {
     effect: EffectId,
     model: ModelSpec,
@@ -80,7 +86,6 @@ pub fn diagnose(
         base,
         blocks,
         rec,
-        runs: all_runs.clone(),
         rows: fit_rows.clone(),
         huber_mm: huber,
         threads,
@@ -105,47 +110,68 @@ pub fn diagnose(
             }
             todo.push(c);
         }
-        // every (candidate, start) fit on its own thread of a pool; the fits then use
-        // one thread each
+        // the screen: every (candidate, start) fitted on a sample of the fit rows with
+        // the effects found so far held, each on its own thread of the pool
         let jobs: Vec<(EffectId, Vec<f64>)> = todo
             .iter()
             .flat_map(|&c| c.starts(n, period).into_iter().map(move |x0| (c, x0)))
             .collect();
-        // each candidate is fitted together with the effects found so far, which stay
-        // free: a first effect that soaked up part of another must be able to give it back
+        let screen = Screen::new(&current, &accepted, rec, fit_rows, huber, threads);
+        let screened = ctr_formats::parallel::map(&jobs, threads, |(c, x0)| screen.fit(*c, x0));
+        let ranked = screen.rank(&todo, &jobs, screened, threads);
+        // the best of them fitted in full from where their screen ended, with the
+        // effects found so far free (a first effect that soaked up part of another must
+        // be able to give it back); one fit after the other, each Jacobian's columns on
+        // the pool
         let held_x: Vec<f64> = accepted.iter().flat_map(|b| b.read(&current)).collect();
         let with = |c: EffectId| -> Vec<EffectId> { accepted.iter().copied().chain([c]).collect() };
-        let results = ctr_formats::parallel::map(&jobs, threads, |(c, x0)| {
-            let mut p = problem(current.clone(), with(*c));
-            p.threads = 1;
-            let x: Vec<f64> = held_x.iter().chain(x0).copied().collect();
-            p.fit(&x, MAX_FIT_ITERATIONS)
-        });
-        for &c in &todo {
-            let p = problem(current.clone(), with(c));
-            let fitted = jobs
-                .iter()
-                .zip(&results)
-                .filter(|((jc, _), _)| *jc == c)
-                .filter_map(|(_, r)| r.clone())
-                .min_by(|a, b| a.cost.total_cmp(&b.cost));
-            let Some(fitted) = fitted else {
-                round_trials.push(not_fitted(
-                    round,
-                    c,
-                    "the model cannot be simulated with this effect".into(),
-                ));
-                continue;
-            };
-            let m = p.model(&fitted.x);
-            let Ok(pred) = predict(&m, rec, all_runs) else {
-                continue;
-            };
-            let e = errors(rec, &pred.p);
-            let fig = figures(&e, held);
+        let mut verdicts: Vec<Trial> = Vec::new();
+        let mut on_screen: Vec<(&Screened, String)> = Vec::new();
+        let mut full_fits = 0;
+        for r in &ranked {
+            let c = r.effect;
             let k = c.n_params(n);
+            let not_full = if full_fits < FULL_FITS && r.projected < screen.cost0 {
+                None
+            } else if screen.bic(r.cost, k) >= 0.0 {
+                Some(format!(
+                    "not added: the information criterion rejects it (fitted with the \
+                     effects found so far held, {})",
+                    screen.rows_in_words()
+                ))
+            } else {
+                Some(format!(
+                    "not fitted in full: the screen ranked {FULL_FITS} candidates higher"
+                ))
+            };
+            if let Some(note) = not_full {
+                on_screen.push((r, note));
+                continue;
+            }
+            full_fits += 1;
+            let p = problem(current.clone(), with(c));
+            let x: Vec<f64> = held_x.iter().chain(&r.x).copied().collect();
+            // the cost the information criterion asks for: a fit that cannot reach it
+            // stops early
+            let bic_cost = current_cost * (-(k as f64) * n_obs.ln() / n_obs).exp();
+            let fitted = p
+                .fit_until(&x, MAX_FIT_ITERATIONS, Some(bic_cost))
+                .and_then(|f| {
+                    let m = p.model(&f.x);
+                    let pred = predict(&m, rec, all_runs).ok()?;
+                    Some((f, m, errors(rec, &pred.p)))
+                });
+            let Some((fitted, m, e)) = fitted else {
+                verdicts.push(not_fitted(round, c, CANNOT_SIMULATE.into()));
+                continue;
+            };
+            let fig = figures(&e, held);
             let bic = n_obs * (fitted.cost / current_cost).ln() + k as f64 * n_obs.ln();
-            let note = if bic >= 0.0 {
+            let note = if fitted.gave_up {
+                "not added: the information criterion rejects it (its fit stopped where \
+                 the gain left, linearised, could not pay for its parameters)"
+                    .to_string()
+            } else if bic >= 0.0 {
                 "not added: the information criterion rejects it".to_string()
             } else if fig.heldout_rms_mm >= current_fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN) {
                 "not added: no gain on held-out rows".to_string()
@@ -153,7 +179,7 @@ pub fn diagnose(
                 String::new()
             };
             let passes = note.is_empty();
-            round_trials.push(Trial {
+            verdicts.push(Trial {
                 round,
                 effect: c,
                 rms_mm: fig.rms_mm,
@@ -175,6 +201,34 @@ pub fn diagnose(
                     e,
                 });
             }
+        }
+        // the others judged on their screen: the model with its screened parameters
+        let screen_errors = ctr_formats::parallel::map(&on_screen, threads, |(r, _)| {
+            let pred = predict(&screen.model(r.effect, &r.x), rec, all_runs).ok()?;
+            Some(errors(rec, &pred.p))
+        });
+        for ((r, note), e) in on_screen.into_iter().zip(screen_errors) {
+            let Some(e) = e else {
+                verdicts.push(not_fitted(round, r.effect, CANNOT_SIMULATE.into()));
+                continue;
+            };
+            let fig = figures(&e, held);
+            verdicts.push(Trial {
+                round,
+                effect: r.effect,
+                rms_mm: fig.rms_mm,
+                heldout_rms_mm: fig.heldout_rms_mm,
+                bic_change: screen.bic(r.cost, r.effect.n_params(n)),
+                added: false,
+                note,
+            });
+        }
+        // the trials in the candidates' order
+        for &c in &todo {
+            round_trials.push(match verdicts.iter().position(|t| t.effect == c) {
+                Some(i) => verdicts.remove(i),
+                None => not_fitted(round, c, CANNOT_SIMULATE.into()),
+            });
         }
         let Some(Best {
             effect: c,

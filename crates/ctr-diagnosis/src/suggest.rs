@@ -288,7 +288,6 @@ pub(crate) fn next_run(
             base: problem.base.clone(),
             blocks: problem.blocks.clone(),
             rec: &rec,
-            runs: vec![0],
             rows: (0..rec.rows.len()).collect(),
             huber_mm: f64::INFINITY,
             threads: problem.threads,

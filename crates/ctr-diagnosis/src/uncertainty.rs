@@ -587,7 +587,6 @@ pub(crate) fn problem_of<'a>(
         base: fitted.clone(),
         blocks,
         rec,
-        runs: (0..rec.runs.len()).collect(),
         rows: rows.to_vec(),
         huber_mm,
         threads,

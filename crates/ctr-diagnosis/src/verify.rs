@@ -205,7 +205,6 @@ impl<'a> Context<'a> {
             base: m.clone(),
             blocks: vec![c],
             rec: self.rec,
-            runs: (0..self.rec.runs.len()).collect(),
             rows: (0..rows).collect(),
             huber_mm: self.huber_mm,
             threads: self.threads,
