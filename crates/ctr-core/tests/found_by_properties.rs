@@ -95,3 +95,80 @@ fn a_cold_start_whose_coarse_steps_fail_is_retried_on_the_full_steps() {
     assert!(d < 1e-5, "{d} mm from the fine-step answer");
     assert!(cold.stability_margin > 0.9, "{}", cold.stability_margin);
 }
+
+/// One Newton iteration on steps of 0.75 of the length scale: the iterate's pose
+/// overflowed (RK4 unstable at its twist) and the solve returned a NaN tip with
+/// `Status::Diverged`, where the documentation promised the best finite iterate.
+/// Now the rigid model's pose (closed form) is reported instead: finite, and still
+/// `Diverged`.
+#[test]
+fn a_diverged_solve_reports_a_finite_pose() {
+    let robot = Robot::new([
+        tube(
+            3.6448880547391886,
+            3.4848880547391885,
+            281.8184050590474,
+            148.02416170846215,
+            Some(145.76586404320025),
+            70626.61713169861,
+            0.34154647395412946,
+        ),
+        tube(
+            3.4648880547391885,
+            2.71030499540259,
+            429.6243386902862,
+            180.3478132259301,
+            Some(25.85855009950234),
+            60303.92314691568,
+            0.40421115892223825,
+        ),
+        tube(
+            2.392575591886588,
+            1.3856182252713731,
+            446.98514748259487,
+            172.19931716450301,
+            Some(-1522.3020316445657),
+            71206.9519688576,
+            0.36415456988710526,
+        ),
+        tube(
+            1.1343210943730568,
+            0.7086254130850937,
+            489.07820828043276,
+            117.16936137953198,
+            Some(-912.440807336691),
+            67394.48420015041,
+            0.4251729685308327,
+        ),
+    ])
+    .unwrap();
+    let s1 = 281.8184050590474 * 0.7853960495933318;
+    let s2 = s1 + (429.6243386902862 - s1) * 0.43337499420883774;
+    let q = Joints::from_mm_deg([s1, s2, s2, s2], [34.742008555995426, 0.0, 0.0, 0.0]);
+    let mut solver = Solver::new(SolverConfig {
+        max_step_mm: 71.92407258382028,
+        step_fraction: 0.7541952990131027,
+        max_iterations: 1,
+        ..Default::default()
+    });
+    let sol = solver
+        .solve(&robot, Request::new(q, Model::Torsion))
+        .unwrap();
+    assert_ne!(sol.status, Status::Converged);
+    let tip = &sol.tip;
+    assert!(
+        tip.position
+            .iter()
+            .chain(tip.rotation.iter())
+            .all(|v| v.is_finite()),
+        "{sol:?}"
+    );
+    assert!(
+        sol.residual_per_mm.is_finite() && sol.base_twist_per_mm.iter().all(|v| v.is_finite()),
+        "{sol:?}"
+    );
+    let rigid = Solver::default()
+        .solve(&robot, Request::new(q, Model::Rigid))
+        .unwrap();
+    assert_eq!(sol.tip, rigid.tip);
+}

@@ -48,7 +48,8 @@ pub enum Status {
     /// The iteration bound was reached first; the result is the best iterate.
     IterationLimit,
     /// The iteration produced non-finite numbers or a singular Jacobian; the result is
-    /// the best finite iterate.
+    /// the best finite iterate (where its pose is not finite, the rigid model's pose,
+    /// with a stability margin of 0: a result is never NaN).
     Diverged,
 }
 

@@ -317,6 +317,17 @@ impl<T: Real, const N: usize> Solver<T, N> {
             }
             let r = sol.residual_per_mm;
             let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
+            if !finite {
+                // no finite pose at the best iterate (RK4 on steps too long for its twist
+                // rates overflows): the rigid model's closed form instead, never NaN
+                let rigid = Setup {
+                    mechanics: Mechanics::Rigid,
+                    ..*setup
+                };
+                pose(&rigid, inp, trace.as_deref_mut(), registration, sol);
+                sol.iterations = newton.iterations;
+                sol.stability_margin = T::zero();
+            }
             sol.status = if diverged || !finite {
                 Status::Diverged
             } else if r <= cfg.residual_tolerance_per_mm {
