@@ -46,11 +46,14 @@ fn check<S: Strategy>(
     }
 }
 
+/// Fractions of the feed ranges and angles (degrees) for joints on a robot.
+type Fractions = (Vec<f64>, Vec<f64>);
+
 /// A robot of `n` tubes and `k` sets of fractions and angles for joints on it.
 fn robot_and_draws(
     n: std::ops::RangeInclusive<usize>,
     k: usize,
-) -> impl Strategy<Value = (Vec<TubeParams<f64>>, Vec<(Vec<f64>, Vec<f64>)>)> {
+) -> impl Strategy<Value = (Vec<TubeParams<f64>>, Vec<Fractions>)> {
     n.prop_flat_map(move |n| {
         (
             props::robot(n),
@@ -636,7 +639,7 @@ fn rigid_closed_form<const N: usize>(
     for w in cuts.windows(2) {
         let (a, b) = (w[0], w[1]);
         let len = b - a;
-        if !(len > 0.0) || a >= q.s_mm[N - 1] {
+        if len <= 0.0 || a >= q.s_mm[N - 1] {
             continue;
         }
         let mid = 0.5 * (a + b);

@@ -189,7 +189,7 @@ fn line_count(bytes: &[u8]) -> usize {
 /// tubes).
 fn located(e: &Error, file: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
     let text = e.to_string();
-    prop_assert!(text.starts_with(&format!("{file}")), "{text}");
+    prop_assert!(text.starts_with(file), "{text}");
     prop_assert!(!text.contains('\n'), "not one line: {text:?}");
     prop_assert_eq!(&e.location().file, file);
     let file_wide = match e.kind() {
@@ -500,6 +500,9 @@ fn table_bytes(
 
 // ---------------------------------------------------------------- recordings
 
+/// A recorded row as the reader must give it: t_s, run label, q, p, quaternion, force.
+type Want = (f64, String, Vec<f64>, [f64; 3], Option<[f64; 4]>, [f64; 3]);
+
 /// A random valid recording: the contract's columns in a random order, optional ones
 /// present or not, run labels of any text (without surrounding spaces: cells are
 /// trimmed), time non-decreasing within a run.
@@ -509,7 +512,7 @@ struct Rec {
     header: Vec<String>,
     rows: Vec<Vec<String>>,
     /// what the reader must give: (t_s, run label, q, p, quaternion, force)
-    want: Vec<(f64, String, Vec<f64>, [f64; 3], Option<[f64; 4]>, [f64; 3])>,
+    want: Vec<Want>,
     has_time: bool,
 }
 
