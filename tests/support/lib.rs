@@ -153,3 +153,113 @@ pub fn recording<const N: usize>(id: &str) -> (Vec<RecRow<N>>, serde_json::Value
     let truth = std::fs::read_to_string(dir.join(format!("{id}.truth.json"))).unwrap();
     (rows, serde_json::from_str(&truth).unwrap())
 }
+
+/// Property tests: their case counts and the random robots and joints they draw.
+pub mod props {
+    use ctr_core::TubeParams;
+    use proptest::prelude::*;
+    use proptest::test_runner::Config;
+
+    /// A proptest configuration of `cases` cases (the count CI runs), or of
+    /// `PROPTEST_CASES` cases when that is set, for longer local runs:
+    /// `PROPTEST_CASES=5000 cargo test --release -p ctr-core --test properties`.
+    /// (proptest reads `PROPTEST_CASES` only for its default configuration, which a
+    /// count of our own would override.)
+    pub fn config(cases: u32) -> Config {
+        let cases = std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or(cases);
+        Config {
+            cases,
+            // a failing case is shrunk, but not for longer than this
+            max_shrink_iters: 2048,
+            ..Config::default()
+        }
+    }
+
+    /// A random tube of a physical robot, built from the inside out: its inner diameter
+    /// is the next tube's outer diameter plus a clearance (`inner_od` is `None` for
+    /// the innermost tube). Ranges: walls 0.08 to 0.6 mm, clearances 0.02 to 0.4 mm,
+    /// curved parts 0 to 200 mm (at most the tube), radii 20 to 2000 mm either sign
+    /// (one tube in five straight), E 1 GPa (plastics) to 80 GPa (nitinol), Poisson
+    /// ratio 0.25 to 0.45.
+    fn tube(inner_od: Option<f64>, length_mm: f64) -> impl Strategy<Value = TubeParams<f64>> {
+        (
+            match inner_od {
+                None => (0.0..1.2f64).boxed(),
+                Some(od) => (0.02..0.4f64).prop_map(move |c| od + c).boxed(),
+            },
+            0.08..0.6f64,
+            0.0..1.0f64,
+            prop_oneof![
+                1 => Just(None),
+                // log-uniform: as many strongly curved tubes (those that snap) as mild ones
+                4 => ((20.0f64).ln()..(2000.0f64).ln(), any::<bool>())
+                    .prop_map(|(r, neg)| Some(if neg { -r.exp() } else { r.exp() })),
+            ],
+            1000.0..80000.0f64,
+            0.25..0.45f64,
+        )
+            .prop_map(move |(id, wall, curved, radius, e, nu)| TubeParams {
+                curvature_radius_mm: radius,
+                ..TubeParams::new(
+                    id + 2.0 * wall,
+                    id,
+                    length_mm,
+                    curved * length_mm.min(200.0),
+                    e,
+                    nu,
+                )
+            })
+    }
+
+    /// A random valid robot of `n` tubes (1 to 4), outermost first: tube lengths from
+    /// 60 to 300 mm for tube 1, each inner tube 10 to 150 mm longer than the one around
+    /// it (it must reach beyond it), tubes as [`tube`] draws them.
+    pub fn robot(n: usize) -> BoxedStrategy<Vec<TubeParams<f64>>> {
+        assert!((1..=ctr_core::MAX_TUBES).contains(&n));
+        (
+            60.0..300.0f64,
+            proptest::collection::vec(10.0..150.0f64, n - 1),
+        )
+            .prop_flat_map(move |(first, extra)| {
+                // lengths outermost first
+                let mut lengths = vec![first];
+                for e in &extra {
+                    lengths.push(lengths.last().copied().unwrap_or(0.0) + e);
+                }
+                // build from the innermost tube out: each tube's inner diameter
+                // depends on the outer diameter of the tube inside it
+                let innermost = tube(None, lengths[n - 1]).prop_map(|t| vec![t]).boxed();
+                (1..n).rev().fold(innermost, |inner, i| {
+                    let length = lengths[i - 1];
+                    inner
+                        .prop_flat_map(move |tubes: Vec<TubeParams<f64>>| {
+                            let od = tubes[0].outer_diameter_mm;
+                            tube(Some(od), length).prop_map(move |t| {
+                                let mut all = vec![t];
+                                all.extend(tubes.iter().copied());
+                                all
+                            })
+                        })
+                        .boxed()
+                })
+            })
+            .boxed()
+    }
+
+    /// Random valid joints for tubes of `lengths` (outermost first), as fractions:
+    /// `s_1 <= ... <= s_n`, each `s_i <= length_i`, rotations -400 to 400 degrees;
+    /// returned in file units, `(s_mm, theta_deg)`.
+    pub fn valid_joints(lengths: &[f64], u: &[f64], theta_deg: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let mut s = Vec::with_capacity(lengths.len());
+        let mut prev = 0.0;
+        for (i, &len) in lengths.iter().enumerate() {
+            let v = prev + (len - prev) * u[i];
+            s.push(v);
+            prev = v;
+        }
+        (s, theta_deg.to_vec())
+    }
+}

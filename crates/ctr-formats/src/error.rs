@@ -242,8 +242,16 @@ impl Error {
 }
 
 impl fmt::Display for Error {
+    /// One line: line breaks in what the kind quotes from the input (a quoted CSV cell,
+    /// a header name, a run label) are written `\n` and `\r`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.0.location, self.0.kind)
+        let what = self.0.kind.to_string();
+        if what.contains(['\n', '\r']) {
+            let what = what.replace('\r', "\\r").replace('\n', "\\n");
+            write!(f, "{}: {what}", self.0.location)
+        } else {
+            write!(f, "{}: {what}", self.0.location)
+        }
     }
 }
 

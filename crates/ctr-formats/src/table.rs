@@ -33,6 +33,9 @@ struct RowSpan {
 
 const QUOTED: usize = usize::MAX;
 
+/// The UTF-8 byte order mark.
+const BOM: &[u8] = b"\xef\xbb\xbf";
+
 /// Rows per chunk of the parallel number parsing.
 const PARSE_CHUNK_ROWS: usize = 4096;
 
@@ -124,17 +127,35 @@ impl Records<'_> {
         let text = &data[start..end];
         if memchr::memchr(b'"', text).is_some() {
             // quoting (maybe over several lines): the csv crate reads this record
+            // a reader strips a byte order mark that opens its input, as the csv crate
+            // does at the start of a file only: a record after the first that opens
+            // with one gets a plain byte before it, taken off its first field again
+            let guard = usize::from(start > 0 && data[start..].starts_with(BOM));
+            let input = std::io::Read::chain(&b"_"[..guard], &data[start..]);
             let mut rdr = csv::ReaderBuilder::new()
                 .has_headers(false)
                 .flexible(true)
-                .from_reader(&data[start..]);
+                .from_reader(input);
             let mut record = csv::StringRecord::new();
             if let Err(e) = rdr.read_record(&mut record) {
-                let at = e.position().map_or(0, |p| p.byte() as usize);
+                let at = e
+                    .position()
+                    .map_or(0, |p| p.byte() as usize)
+                    .saturating_sub(guard);
                 let line = line + count_newlines(&data[start..(start + at).min(data.len())]);
                 return Err(csv_error(e, self.file, line));
             }
-            let consumed = (rdr.position().byte() as usize).max(1);
+            if guard == 1 {
+                let mut fields = record.iter();
+                let first = fields.next().unwrap_or_default();
+                let mut kept = csv::StringRecord::new();
+                kept.push_field(first.strip_prefix('_').unwrap_or(first));
+                fields.for_each(|f| kept.push_field(f));
+                record = kept;
+            }
+            let consumed = (rdr.position().byte() as usize)
+                .saturating_sub(guard)
+                .max(1);
             let stop = (start + consumed).min(data.len());
             self.line += count_newlines(&data[start..stop]);
             self.pos = stop;

@@ -13,7 +13,7 @@
 use crate::errors;
 use crate::json::Json;
 use crate::recording::{self, Recording};
-use crate::robot::{threads_arg, Robot, MAX_THREADS};
+use crate::robot::{check_threads, Robot, MAX_THREADS};
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
 use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;
@@ -78,7 +78,7 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 fn threads_opt(threads: Option<i64>) -> PyResult<usize> {
     match threads {
         None => Ok(0),
-        Some(t) if t >= 0 => threads_arg(usize::try_from(t).unwrap_or(usize::MAX)),
+        Some(t) if t >= 0 => check_threads(usize::try_from(t).unwrap_or(usize::MAX)),
         Some(t) => Err(errors::input(format!(
             "threads: {t} is not in 0..={} (0 = all cores)",
             MAX_THREADS

@@ -48,7 +48,8 @@ pub enum Status {
     /// The iteration bound was reached first; the result is the best iterate.
     IterationLimit,
     /// The iteration produced non-finite numbers or a singular Jacobian; the result is
-    /// the best finite iterate.
+    /// the best finite iterate (where its pose is not finite, the rigid model's pose,
+    /// with a stability margin of 0: a result is never NaN).
     Diverged,
 }
 
@@ -68,7 +69,9 @@ pub struct SolverConfig<T> {
     /// tip within 1.1e-4 mm of the reference tables on the shared robots (3e-5 mm on the
     /// nitinol ones; convergence study in `crates/ctr-core/tests/convergence.rs`).
     pub step_fraction: T,
-    /// Most Newton iterations (integrations with sensitivities) per solve.
+    /// Most Newton iterations (integrations with sensitivities) per start; a torsion
+    /// solve makes at most three starts (warm, cold on coarse steps, cold on the full
+    /// steps), each only when the one before it failed.
     pub max_iterations: u32,
     /// Newton stops when its step in every base twist rate is below this, rad/mm; the
     /// pose pass then checks the residual.

@@ -6,7 +6,8 @@
 //! ([`crate::integrate::variations`]), warm-started from the solver's memory (or, cold,
 //! on coarse steps first), then integrates the converged twist once more with the pose
 //! (`pose`), which also measures the residual it leaves; only if that exceeds the
-//! residual tolerance does Newton go on. A warm start that fails is retried cold.
+//! residual tolerance does Newton go on. A warm start that fails is retried cold, and a
+//! cold start on coarse steps that fails is retried on the full steps.
 
 use super::jacobian;
 use super::newton::{Evaluation, Newton, Policy, Shooting, Stop};
@@ -217,7 +218,8 @@ impl<T: Real, const N: usize> Solver<T, N> {
         sol
     }
 
-    /// The torsion model, warm-started (a warm start that fails is retried cold).
+    /// The torsion model, warm-started (a warm start that fails is retried cold, a cold
+    /// start on coarse steps that fails on the full steps).
     #[inline(always)]
     fn torsion(
         &mut self,
@@ -242,7 +244,24 @@ impl<T: Real, const N: usize> Solver<T, N> {
         if sol.status != Status::Converged && !cold {
             // a warm start from far away can land in another basin: retry cold
             let iterations = sol.iterations;
-            self.shoot(setup, inp, [T::zero(); N], true, trace, registration, sol);
+            self.shoot(
+                setup,
+                inp,
+                [T::zero(); N],
+                true,
+                trace.as_deref_mut(),
+                registration,
+                sol,
+            );
+            sol.iterations += iterations;
+        }
+        if sol.status != Status::Converged {
+            // the coarse steps of a cold start can be too long for the twist rates of
+            // Newton's first iterates (RK4 on the relative angles goes unstable where a
+            // relative twist rate times the step passes ~2.8, and Newton wanders):
+            // retry on the full steps, which resolve the coupling of the answer
+            let iterations = sol.iterations;
+            self.shoot(setup, inp, [T::zero(); N], false, trace, registration, sol);
             sol.iterations += iterations;
         }
         if sol.status == Status::Converged {
@@ -298,6 +317,17 @@ impl<T: Real, const N: usize> Solver<T, N> {
             }
             let r = sol.residual_per_mm;
             let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
+            if !finite {
+                // no finite pose at the best iterate (RK4 on steps too long for its twist
+                // rates overflows): the rigid model's closed form instead, never NaN
+                let rigid = Setup {
+                    mechanics: Mechanics::Rigid,
+                    ..*setup
+                };
+                pose(&rigid, inp, trace.as_deref_mut(), registration, sol);
+                sol.iterations = newton.iterations;
+                sol.stability_margin = T::zero();
+            }
             sol.status = if diverged || !finite {
                 Status::Diverged
             } else if r <= cfg.residual_tolerance_per_mm {

@@ -14,13 +14,65 @@ use pyo3::prelude::*;
 pub(crate) const MAX_THREADS: usize = 1024;
 
 /// `threads` checked: 0 (all cores) to [`MAX_THREADS`].
-pub(crate) fn threads_arg(threads: usize) -> PyResult<usize> {
+pub(crate) fn check_threads(threads: usize) -> PyResult<usize> {
     if threads > MAX_THREADS {
         return Err(errors::input(format!(
             "threads: {threads} is not in 0..={MAX_THREADS} (0 = all cores)"
         )));
     }
     Ok(threads)
+}
+
+/// The `threads` argument (absent: 0, all cores): an integer, checked by
+/// [`check_threads`].
+pub(crate) fn threads_arg(threads: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+    let Some(threads) = threads else {
+        return Ok(0);
+    };
+    let t = count_arg(
+        threads,
+        "threads",
+        0,
+        MAX_THREADS as u64,
+        " (0 = all cores)",
+    )?;
+    check_threads(t as usize)
+}
+
+/// An integer argument `name` in `lo..=hi`; anything else (a negative or huge number,
+/// a float, a string) is an `InputError` naming it, as the other arguments' errors are
+/// (not the `OverflowError` or `TypeError` of Python's conversion).
+pub(crate) fn count_arg(
+    value: &Bound<'_, PyAny>,
+    name: &str,
+    lo: u64,
+    hi: u64,
+    note: &str,
+) -> PyResult<u64> {
+    let text = || {
+        value
+            .repr()
+            .map(|r| r.to_string())
+            .unwrap_or_else(|_| "?".into())
+    };
+    // bool is an int in Python: refused like any other non-count
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(errors::input(format!(
+            "{name}: {} is not an integer",
+            text()
+        )));
+    }
+    match value.extract::<i128>() {
+        Ok(v) if v >= i128::from(lo) && v <= i128::from(hi) => Ok(v as u64),
+        Ok(_) => Err(errors::input(format!(
+            "{name}: {} is not in {lo}..={hi}{note}",
+            text()
+        ))),
+        Err(_) => Err(errors::input(format!(
+            "{name}: {} is not an integer",
+            text()
+        ))),
+    }
 }
 
 impl Robot {

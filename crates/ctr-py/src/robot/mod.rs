@@ -8,7 +8,7 @@
 mod args;
 mod solve;
 
-pub(crate) use args::{threads_arg, MAX_THREADS};
+pub(crate) use args::{check_threads, count_arg, threads_arg, MAX_THREADS};
 
 use crate::arrays::{self, Rows};
 use crate::errors::{self, Fail};
@@ -236,14 +236,14 @@ impl Robot {
     }
 
     /// Tip forward kinematics of joint rows; see `_ctr.pyi`.
-    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = 0, t_s = None))]
+    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = None, t_s = None))]
     fn fk<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
         model: Option<&str>,
         on_error: &str,
-        threads: usize,
+        threads: Option<&Bound<'py, PyAny>>,
         t_s: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
@@ -314,13 +314,13 @@ impl Robot {
     }
 
     /// Tip Jacobian(s) per file unit; see `_ctr.pyi`.
-    #[pyo3(signature = (q, model = None, *, threads = 0))]
+    #[pyo3(signature = (q, model = None, *, threads = None))]
     fn jacobian<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
         model: Option<&str>,
-        threads: usize,
+        threads: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let model = self.model_arg(model)?;
         let threads = threads_arg(threads)?;
@@ -340,16 +340,16 @@ impl Robot {
         *,
         model = None,
         cold = false,
-        chunk_rows = IK_CHUNK_ROWS,
+        chunk_rows = None,
         tolerance_mm = IkOptions::default().tolerance_mm,
         orientation_tolerance_deg = ORIENTATION_TOLERANCE_DEG,
         position_weight = IkOptions::default().position_weight,
         orientation_weight = IkOptions::default().orientation_weight,
         damping_feed = IkOptions::default().damping_feed,
         damping_rotation = IkOptions::default().damping_rotation,
-        restarts = IkOptions::default().restarts,
-        max_iterations = IkOptions::default().max_iterations,
-        threads = 0,
+        restarts = None,
+        max_iterations = None,
+        threads = None,
     ))]
     fn ik<'py>(
         &self,
@@ -358,19 +358,32 @@ impl Robot {
         q0: Option<&Bound<'py, PyAny>>,
         model: Option<&str>,
         cold: bool,
-        chunk_rows: usize,
+        chunk_rows: Option<&Bound<'py, PyAny>>,
         tolerance_mm: f64,
         orientation_tolerance_deg: f64,
         position_weight: f64,
         orientation_weight: f64,
         damping_feed: f64,
         damping_rotation: f64,
-        restarts: u32,
-        max_iterations: u32,
-        threads: usize,
+        restarts: Option<&Bound<'py, PyAny>>,
+        max_iterations: Option<&Bound<'py, PyAny>>,
+        threads: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
         let threads = threads_arg(threads)?;
+        let defaults = IkOptions::default();
+        let chunk_rows = match chunk_rows {
+            None => IK_CHUNK_ROWS,
+            Some(v) => count_arg(v, "chunk_rows", 0, u32::MAX.into(), "")? as usize,
+        };
+        let restarts = match restarts {
+            None => defaults.restarts,
+            Some(v) => count_arg(v, "restarts", 0, u32::MAX.into(), "")? as u32,
+        };
+        let max_iterations = match max_iterations {
+            None => defaults.max_iterations,
+            Some(v) => count_arg(v, "max_iterations", 0, u32::MAX.into(), "")? as u32,
+        };
         if max_iterations == 0 {
             return Err(errors::input("max_iterations: 0 must be >= 1".into()));
         }
