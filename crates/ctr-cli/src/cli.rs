@@ -204,7 +204,11 @@ x_mm,y_mm,z_mm: empty, for the tracker.
 
 On a fault the rig holds position (--torque-off-on-fault also switches torque off),
 the fault and the packet that caused it are reported on stderr, the recording keeps
-every completed row, and the exit status is 1.";
+every completed row, and the exit status is 1.
+
+The rows go to a journal beside the recording, RECORDING.csv.XXXXXX.partial, renamed to
+RECORDING.csv when the run ends (also on a fault): a killed run leaves RECORDING.csv as
+it was and every completed row in its journal.";
 
 /// Options of `ctr-cli hw emulate`.
 #[derive(Debug, clap::Args)]

@@ -7,7 +7,6 @@ use crate::Failure;
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
 use ctr_formats::{AtomicFile, Recording, RobotSpec, CLEARANCE_FIT_TABLE_SIZES};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Options of `ctr-cli diagnose`.
@@ -122,10 +121,7 @@ fn check_outputs(paths: &[&Option<PathBuf>]) -> Result<(), Failure> {
 }
 
 fn write_text(path: &Path, text: &str) -> Result<(), Failure> {
-    let mut f = AtomicFile::create(path).map_err(|e| Failure::Input(e.to_string()))?;
-    f.write_all(text.as_bytes())
-        .map_err(|e| Failure::Input(format!("{}: cannot write: {e}", path.display())))?;
-    f.commit().map_err(|e| Failure::Input(e.to_string()))
+    AtomicFile::write_file(path, text.as_bytes()).map_err(|e| Failure::Input(e.to_string()))
 }
 
 /// Where `diagnose` and `calibrate` write.

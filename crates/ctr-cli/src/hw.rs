@@ -452,11 +452,23 @@ fn play(args: RunArgs) -> Result<(), Failure> {
             .map_err(|e| hardware(e.to_string()))?;
         player.play(&mut session, from, &mut rec)
     } else {
+        // the rows go to a journal beside the recording, renamed to it when the run
+        // ends, also on a fault: a kill leaves the recording's path as it was and every
+        // completed row in the journal (ctr_formats::recording)
         let mut rec = RecordingWriter::create(&args.output, n, args.overwrite)
             .map_err(|e| hardware(e.to_string()))?;
+        let journal = rec.journal_path().display().to_string();
         let result = player.play(&mut session, from, &mut rec);
-        let synced = rec.sync().map_err(|e| hardware(e.to_string()));
-        result.and(synced)
+        let finished = rec
+            .finish()
+            .map_err(|e| format!("{e}; its rows are kept in {journal}"));
+        match (result, finished) {
+            (Ok(()), finished) => finished.map_err(hardware),
+            (Err(Failure::Hardware(stop)), Err(unfinished)) => {
+                Err(hardware(format!("{stop}; but {unfinished}")))
+            }
+            (Err(stop), _) => Err(stop),
+        }
     }
 }
 

@@ -9,7 +9,7 @@
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_diagnosis::Diagnosis;
-use ctr_formats::Recording;
+use ctr_formats::{AtomicFile, Recording};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::error::Error;
@@ -149,16 +149,30 @@ fn models<'a, T>(before: &'a [T], after: &'a [T]) -> [(&'a [T], RGBColor, &'stat
     ]
 }
 
-/// Writes one plot into `path`: the caption, the axes over `x` and `y` with their
-/// descriptions, `draw`'s series, and the legend.
+/// Writes one plot into `path` (atomically, as every output): the caption, the axes
+/// over `x` and `y` with their descriptions, `draw`'s series, and the legend.
 fn plot(
     path: &Path,
+    caption: String,
+    axes: (Range<f64>, &str),
+    y: (Range<f64>, &str),
+    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), Box<dyn Error>>,
+) -> Result<(), Box<dyn Error>> {
+    let mut svg = String::new();
+    draw_plot(&mut svg, caption, axes, y, draw)?;
+    // the caller names the path
+    AtomicFile::write_file(path, svg.as_bytes()).map_err(|e| e.kind().to_string())?;
+    Ok(())
+}
+
+fn draw_plot(
+    svg: &mut String,
     caption: String,
     (x, x_desc): (Range<f64>, &str),
     (y, y_desc): (Range<f64>, &str),
     draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), Box<dyn Error>>,
 ) -> Result<(), Box<dyn Error>> {
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
+    let root = SVGBackend::with_string(svg, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(caption, ("sans-serif", CAPTION_PX))

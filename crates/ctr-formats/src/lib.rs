@@ -136,8 +136,11 @@
 //! `t_s,run,s1_mm,theta1_deg,...,s1_read_mm,theta1_read_deg,...,x_mm,y_mm,z_mm`: the
 //! contract's recording (time in seconds, run label, the commanded joints, the tip) plus
 //! the joints read back from the motors ([`JointId::read_column`]). `x_mm,y_mm,z_mm`
-//! are left empty for the tracker. Each row is one `write` of the whole line and a flush:
-//! a run that stops leaves a valid CSV of its completed rows. An existing recording is
+//! are left empty for the tracker. Each row is one `write` of the whole line and a flush
+//! into a journal beside the recording ([`AtomicFile::journal`]) that becomes the
+//! recording when the run ends (also on a fault): a run that stops leaves a valid CSV of
+//! its completed rows, a killed one leaves them in the journal, and the recording's path
+//! holds the previous file or a finished run's, never a part. An existing recording is
 //! never replaced unless asked.
 //!
 //! # Errors

@@ -1,18 +1,35 @@
-//! Atomic output files: written to a temporary file beside the target and renamed over
-//! it only when everything succeeded, so a failed run never leaves a half-written file
-//! and never replaces an existing one.
+//! Atomic output files, the one way every output file of the project is written: to a
+//! temporary file beside the target (same directory, so same file system), flushed,
+//! `fsync`ed, and renamed over the target only when everything succeeded; then the
+//! directory is synced so that the rename itself survives a power cut.
+//!
+//! What that guarantees, also against `SIGKILL` at any moment: the target is either
+//! the previous file (or absent) or the complete new one, never a part. Every writer
+//! has its own randomly named temporary file, so two runs writing the same path at once
+//! leave one complete file (the last rename wins), never an interleaving. A run that
+//! fails deletes its temporary file; a killed one leaves it behind (a hidden
+//! `.NAME.XXXXXX.tmp`, never read by anything).
+//!
+//! A [`journal`](AtomicFile::journal) is the same with a visible temporary file
+//! (`NAME.XXXXXX.partial`) for outputs whose rows are evidence (the rig's recordings):
+//! each flushed row is in it at once, a kill leaves it as a valid file of the rows
+//! written, and it is kept whenever it cannot be renamed into place.
 
 use crate::error::{Error, ErrorKind, Location};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use tempfile::NamedTempFile;
 
+/// Bytes gathered before a write to the temporary file (flush writes sooner).
+const BUFFER_BYTES: usize = 1 << 20;
+
 /// A file being written; it appears at its path only on [`commit`](Self::commit).
-/// Dropping it without committing deletes the temporary file.
+/// Dropping it without committing deletes the temporary file (but a journal's).
 pub struct AtomicFile {
     path: PathBuf,
     file: String,
     tmp: BufWriter<NamedTempFile>,
+    journal: bool,
 }
 
 /// The directory an output file at `path` goes into, after checking that it exists and
@@ -50,38 +67,125 @@ impl AtomicFile {
         output_dir(path).map(|_| ())
     }
 
-    /// Creates the temporary file in `path`'s directory (which must exist).
+    /// Creates the hidden temporary file `.NAME.XXXXXX.tmp` in `path`'s directory
+    /// (which must exist).
+    ///
+    /// ```
+    /// use std::io::Write;
+    /// let dir = tempfile::tempdir()?;
+    /// let path = dir.path().join("tips.csv");
+    /// let mut out = ctr_formats::AtomicFile::create(&path)?;
+    /// out.write_all(b"x_mm\n1\n")?;
+    /// assert!(!path.exists()); // not before the commit
+    /// out.commit()?;
+    /// assert_eq!(std::fs::read_to_string(&path)?, "x_mm\n1\n");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn create(path: &Path) -> Result<AtomicFile, Error> {
+        Self::with_temp(path, false)
+    }
+
+    /// Creates the visible temporary file `NAME.XXXXXX.partial` in `path`'s directory,
+    /// for an output written row by row whose rows must survive a kill: each
+    /// [`flush`](Write::flush) puts what was written into it, and it is kept (never
+    /// deleted) when the output is not committed or the commit fails.
+    ///
+    /// ```
+    /// use std::io::Write;
+    /// let dir = tempfile::tempdir()?;
+    /// let mut rec = ctr_formats::AtomicFile::journal(&dir.path().join("rec.csv"))?;
+    /// rec.write_all(b"t_s\n0.5\n")?;
+    /// rec.flush()?;
+    /// let journal = rec.temp_path().to_owned();
+    /// assert!(journal.file_name().unwrap().to_str().unwrap().starts_with("rec.csv."));
+    /// assert_eq!(std::fs::read_to_string(&journal)?, "t_s\n0.5\n");
+    /// drop(rec); // as if killed: the rows stay
+    /// assert!(journal.exists());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn journal(path: &Path) -> Result<AtomicFile, Error> {
+        Self::with_temp(path, true)
+    }
+
+    /// Writes `contents` to `path` atomically (create, write, commit).
+    ///
+    /// ```
+    /// let dir = tempfile::tempdir()?;
+    /// let path = dir.path().join("report.json");
+    /// ctr_formats::AtomicFile::write_file(&path, b"{}\n")?;
+    /// assert_eq!(std::fs::read_to_string(&path)?, "{}\n");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn write_file(path: &Path, contents: &[u8]) -> Result<(), Error> {
+        let mut f = Self::create(path)?;
+        f.write_all(contents).map_err(|source| {
+            Error::new(
+                Location::file(path.display().to_string()),
+                ErrorKind::Io {
+                    action: "write",
+                    source,
+                },
+            )
+        })?;
+        f.commit()
+    }
+
+    fn with_temp(path: &Path, journal: bool) -> Result<AtomicFile, Error> {
         let file = path.display().to_string();
         let fail = |kind| Error::new(Location::file(&file), kind);
         let dir = output_dir(path)?;
         let name = path
             .file_name()
             .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-        let prefix = format!(".{name}.");
+        let (prefix, suffix) = if journal {
+            (format!("{name}."), ".partial")
+        } else {
+            (format!(".{name}."), ".tmp")
+        };
         let mut builder = tempfile::Builder::new();
-        builder.prefix(&prefix).suffix(".tmp");
+        builder.prefix(&prefix).suffix(suffix);
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
             // like a plain create: 0666 less the umask
             builder.permissions(std::fs::Permissions::from_mode(0o666));
         }
-        let tmp = builder.tempfile_in(&dir).map_err(|source| {
+        let mut tmp = builder.tempfile_in(&dir).map_err(|source| {
             fail(ErrorKind::Io {
                 action: "create a temporary file in its directory",
                 source,
             })
         })?;
+        if journal {
+            // never deleted on drop: dropping a kept file only closes it
+            tmp.disable_cleanup(true);
+        }
         Ok(AtomicFile {
             path: path.to_path_buf(),
             file,
-            tmp: BufWriter::with_capacity(1 << 20, tmp),
+            tmp: BufWriter::with_capacity(BUFFER_BYTES, tmp),
+            journal,
         })
     }
 
-    /// Flushes, syncs and renames the temporary file over the target.
+    /// The temporary file being written (renamed to the target on commit).
+    pub fn temp_path(&self) -> &Path {
+        self.tmp.get_ref().path()
+    }
+
+    /// Flushes, syncs and renames the temporary file over the target (replacing it).
     pub fn commit(self) -> Result<(), Error> {
+        self.place(true)
+    }
+
+    /// As [`commit`](Self::commit), but fails (with an `AlreadyExists` I/O error) when
+    /// the target exists, instead of replacing it: for outputs that are never
+    /// overwritten unless asked (a journal is then kept).
+    pub fn commit_new(self) -> Result<(), Error> {
+        self.place(false)
+    }
+
+    fn place(self, replace: bool) -> Result<(), Error> {
         let file = self.file;
         let fail =
             |action, source| Error::new(Location::file(&file), ErrorKind::Io { action, source });
@@ -90,9 +194,52 @@ impl AtomicFile {
             .into_inner()
             .map_err(|e| fail("write", e.into_error()))?;
         tmp.as_file().sync_all().map_err(|e| fail("write", e))?;
-        tmp.persist(&self.path)
-            .map_err(|e| fail("rename the temporary file to", e.error))?;
+        let placed = if replace {
+            tmp.persist(&self.path)
+        } else {
+            tmp.persist_noclobber(&self.path)
+        };
+        placed.map_err(|e| {
+            if self.journal {
+                // the rows stay where they are
+                let _ = e.file.keep();
+            }
+            let action = if e.error.kind() == io::ErrorKind::AlreadyExists {
+                "create: it exists already"
+            } else {
+                "rename the temporary file to"
+            };
+            fail(action, e.error)
+        })?;
+        sync_dir(&self.path);
         Ok(())
+    }
+}
+
+/// Syncs the directory of `path` so that a rename into it is on the disk (Unix; best
+/// effort: the rename has happened either way).
+fn sync_dir(path: &Path) {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+impl std::fmt::Debug for AtomicFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AtomicFile")
+            .field("path", &self.path)
+            .field("temp_path", &self.temp_path())
+            .field("journal", &self.journal)
+            .finish()
     }
 }
 

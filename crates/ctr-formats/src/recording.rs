@@ -2,15 +2,26 @@
 //! contract's recording (time, run label, commanded joints, measured tip) plus the
 //! joints read back from the motors.
 //!
-//! Unlike the tip file it is not written atomically: a recording is evidence of what the
-//! robot did, so every row goes to the file as soon as it is complete (one write of the
-//! whole line, then a flush), and a run that stops on a fault leaves a valid CSV of every
-//! row completed before it, never a partial row.
+//! A recording is evidence of what the robot did, so every row goes to a file as soon
+//! as it is complete (one write of the whole line, then a flush), never a partial row.
+//! That file is a journal beside the recording ([`AtomicFile::journal`],
+//! `RECORDING.csv.XXXXXX.partial`), renamed to the recording when the run ends, also
+//! when it stops on a fault ([`RecordingWriter::finish`]). So:
+//!
+//! - a run that stops on a fault leaves a valid recording of every row completed before
+//!   the fault;
+//! - a run killed at any moment (`SIGKILL`, power cut after the flushed rows reached the
+//!   disk) leaves every row completed before the kill in its journal, a valid CSV, and
+//!   the recording's path as it was (absent, or the previous recording with
+//!   `--overwrite`): never a half recording under the name the tracker reads;
+//! - two runs recording to one path at once never interleave: each has its own journal;
+//!   without `--overwrite` the second to finish finds the first's recording and keeps
+//!   its own journal, with `--overwrite` the last to finish wins.
 
 use super::actuation::JointId;
 use super::format_float;
+use super::output::AtomicFile;
 use crate::error::{Error, ErrorKind, Location};
-use std::fs::File;
 use std::io::{self, Write};
 use std::path::Path;
 
@@ -51,6 +62,8 @@ pub struct RecordingWriter<W: Write> {
     file: String,
     n_tubes: usize,
     rows: usize,
+    /// [`finish`](RecordingWriter::finish) replaces an existing recording
+    replace: bool,
 }
 
 impl<W: Write> RecordingWriter<W> {
@@ -62,6 +75,7 @@ impl<W: Write> RecordingWriter<W> {
             file: file.to_owned(),
             n_tubes,
             rows: 0,
+            replace: false,
         };
         let header = recording_header(n_tubes);
         writer.write_line(header.iter().map(String::as_str))?;
@@ -135,31 +149,38 @@ impl<W: Write> RecordingWriter<W> {
     }
 }
 
-impl RecordingWriter<File> {
-    /// Creates a new recording file (refusing to replace an existing one unless
-    /// `overwrite`) and writes its header.
+impl RecordingWriter<AtomicFile> {
+    /// Starts a recording at `path` (refusing to replace an existing one unless
+    /// `overwrite`): creates its journal beside it and writes the header there.
+    ///
+    /// ```
+    /// use ctr_formats::RecordingWriter;
+    /// let dir = tempfile::tempdir()?;
+    /// let path = dir.path().join("rec.csv");
+    /// let mut rec = RecordingWriter::create(&path, 1, false)?;
+    /// rec.write_row(0.5, "r", &[10.0, 90.0], &[10.0, 90.0])?;
+    /// // the row is in the journal already; the recording appears on finish
+    /// assert_eq!(std::fs::read_to_string(rec.journal_path())?.lines().count(), 2);
+    /// assert!(!path.exists());
+    /// rec.finish()?;
+    /// assert_eq!(std::fs::read_to_string(&path)?.lines().count(), 2);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn create(path: &Path, n_tubes: usize, overwrite: bool) -> Result<Self, Error> {
         Self::check_path(path)?;
         let file = path.display().to_string();
-        let fail = |kind| Error::new(Location::file(&file), kind);
-        let mut options = File::options();
-        options.write(true);
-        if overwrite {
-            options.create(true).truncate(true);
-        } else {
-            options.create_new(true);
-        }
-        let out = options.open(path).map_err(|source| {
-            fail(ErrorKind::Io {
-                action: if source.kind() == io::ErrorKind::AlreadyExists {
-                    "create the recording: it exists already"
-                } else {
-                    "create"
+        if !overwrite && path.exists() {
+            return Err(Error::new(
+                Location::file(&file),
+                ErrorKind::Io {
+                    action: "create the recording: it exists already",
+                    source: io::ErrorKind::AlreadyExists.into(),
                 },
-                source,
-            })
-        })?;
-        RecordingWriter::new(out, &file, n_tubes)
+            ));
+        }
+        let mut writer = RecordingWriter::new(AtomicFile::journal(path)?, &file, n_tubes)?;
+        writer.replace = overwrite;
+        Ok(writer)
     }
 
     /// Checks that a recording can be created at `path`: its directory exists and it is
@@ -174,17 +195,20 @@ impl RecordingWriter<File> {
         super::output::output_dir(path).map(|_| ())
     }
 
-    /// Asks the operating system to put everything written on the disk.
-    pub fn sync(&mut self) -> Result<(), Error> {
-        self.out.sync_all().map_err(|source| {
-            Error::new(
-                Location::file(&self.file),
-                ErrorKind::Io {
-                    action: "write",
-                    source,
-                },
-            )
-        })
+    /// The journal the rows are written to until [`finish`](Self::finish).
+    pub fn journal_path(&self) -> &Path {
+        self.out.temp_path()
+    }
+
+    /// Syncs the journal and renames it to the recording (replacing an existing one
+    /// only if created with `overwrite`). On an error the journal is kept, with every
+    /// row written.
+    pub fn finish(self) -> Result<(), Error> {
+        if self.replace {
+            self.out.commit()
+        } else {
+            self.out.commit_new()
+        }
     }
 }
 
@@ -256,11 +280,54 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "precious\n");
         let mut rec = RecordingWriter::create(&path, 1, true).unwrap();
         rec.write_row(0.0, "r", &[1.0, 2.0], &[1.0, 2.0]).unwrap();
-        rec.sync().unwrap();
+        // the previous recording stays until the run ends
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "precious\n");
+        rec.finish().unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.starts_with("t_s,run,"), "{text}");
         assert_eq!(text.lines().count(), 2);
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no journal left"
+        );
         let err = RecordingWriter::create(&dir.path().join("no/rec.csv"), 1, false).unwrap_err();
         assert!(err.to_string().contains("does not exist"), "{err}");
+    }
+
+    #[test]
+    fn a_recording_made_meanwhile_is_not_replaced_and_the_journal_is_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rec.csv");
+        let mut rec = RecordingWriter::create(&path, 1, false).unwrap();
+        rec.write_row(0.0, "mine", &[1.0, 2.0], &[1.0, 2.0])
+            .unwrap();
+        let journal = rec.journal_path().to_owned();
+        std::fs::write(&path, "another run's\n").unwrap();
+        let err = rec.finish().unwrap_err();
+        assert!(err.to_string().contains("exists already"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "another run's\n");
+        let kept = std::fs::read_to_string(&journal).unwrap();
+        assert!(kept.ends_with("0,mine,1,2,1,2,,,\n"), "{kept}");
+    }
+
+    #[test]
+    fn an_unfinished_recording_leaves_its_rows_in_the_journal() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rec.csv");
+        let mut rec = RecordingWriter::create(&path, 1, false).unwrap();
+        rec.write_row(0.0, "r", &[1.0, 2.0], &[1.0, 2.0]).unwrap();
+        let journal = rec.journal_path().to_owned();
+        drop(rec);
+        assert!(!path.exists());
+        let name = journal.file_name().unwrap().to_str().unwrap();
+        assert!(
+            name.starts_with("rec.csv.") && name.ends_with(".partial"),
+            "{name}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(&journal).unwrap().lines().count(),
+            2
+        );
     }
 }

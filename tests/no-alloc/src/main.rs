@@ -1,133 +1,124 @@
-//! Links every kind of solve request (2 and 3 tubes, f64 and f32: torsion, rigid with
-//! backbone points, loads with the compliance, joint and parameter Jacobians, effects
-//! with clearance kinks and friction moments) into a bare-metal binary without a global
-//! allocator: proof that ctr-core never allocates.
+//! The firmware check of ctr-core on a Cortex-M4F (`thumbv7em-none-eabihf`).
+//!
+//! It links every kind of solve request ([`every_request`]) with no global allocator:
+//! the link fails the moment anything in ctr-core allocates. Run on QEMU's
+//! `mps2-an386` (`run-qemu.sh`), it solves the shared reference configurations
+//! ([`reference`]) in `f64` and in `f32`, prints one line per tip over semihosting:
+//!
+//! ```text
+//! tip <f64|f32> <model> <row> <x_mm> <y_mm> <z_mm> <qw> <qx> <qy> <qz> <status>
+//! ```
+//!
+//! then the stack's high-water mark ([`stack`]) and a last line
+//! `done <configurations> solved, <failed> failed`; it exits through semihosting with
+//! status 0 when every solve converged.
 #![no_std]
 #![no_main]
 
+mod every_request;
+mod reference;
+mod stack;
+
 use core::panic::PanicInfo;
-use ctr_core::{
-    JointJacobian, Joints, Model, ParameterJacobian, Request, Robot, Solver, TubeParams,
-};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use ctr_core::{Real, Status};
+
+/// The board this firmware is linked for (`memory.x`).
+const BOARD: &str = "mps2-an386 (Cortex-M4F)";
 
 #[panic_handler]
-fn panic(_: &PanicInfo) -> ! {
-    loop {}
+fn panic(info: &PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    halt()
 }
 
-fn tube<T: ctr_core::Real>(od: f64, id: f64, len: f64, cl: f64, r: f64) -> TubeParams<T> {
-    let c = |v: f64| -> T { nalgebra_convert(v) };
-    TubeParams {
-        curvature_radius_mm: Some(c(r)),
-        ..TubeParams::new(c(od), c(id), c(len), c(cl), c(58000.0), c(0.33))
+/// Stops here (only reached where no debugger ends the run).
+fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
     }
 }
 
-fn nalgebra_convert<T: ctr_core::Real>(v: f64) -> T {
-    T::from_subset(&v)
+/// Solves every reference table in `T` (`name`: `f64` or `f32`), printing each tip;
+/// returns (rows solved, rows that did not converge).
+fn solve_all<T: Real>(name: &str) -> (usize, usize) {
+    let robot = match reference::robot::<T>() {
+        Ok(r) => r,
+        Err(e) => {
+            hprintln!("error {name}: the reference robot is invalid: {:?}", e);
+            return (0, 1);
+        }
+    };
+    let (mut solved, mut failed) = (0, 0);
+    for table in &reference::TABLES {
+        reference::solve_table::<T>(&robot, table, |row, tip| {
+            solved += 1;
+            match tip {
+                Ok(t) => {
+                    let [x, y, z] = t.position_mm;
+                    let [qw, qx, qy, qz] = t.orientation;
+                    hprintln!(
+                        "tip {} {} {} {} {} {} {} {} {} {} {:?}",
+                        name,
+                        table.model,
+                        row,
+                        x,
+                        y,
+                        z,
+                        qw,
+                        qx,
+                        qy,
+                        qz,
+                        t.status
+                    );
+                    if t.status != Status::Converged {
+                        failed += 1;
+                    }
+                }
+                Err(e) => {
+                    hprintln!("error {} {} {} {:?}", name, table.model, row, e);
+                    failed += 1;
+                }
+            }
+        });
+    }
+    (solved, failed)
 }
 
-fn solve3<T: ctr_core::Real>(x: T) -> T {
-    let robot = match Robot::new([
-        tube::<T>(1.9, 1.6, 160.0, 80.0, 300.0),
-        tube::<T>(1.4, 1.1, 220.0, 70.0, 180.0),
-        tube::<T>(0.9, 0.6, 280.0, 50.0, 80.0),
-    ]) {
-        Ok(r) => r,
-        Err(_) => return T::zero(),
-    };
-    let mut solver = Solver::default();
-    let q = Joints::new(
-        [
-            nalgebra_convert(30.0),
-            nalgebra_convert(60.0),
-            nalgebra_convert(90.0),
-        ],
-        [x, x + x, T::zero()],
+#[entry]
+fn main() -> ! {
+    hprintln!(
+        "ctr-core firmware check on {}: robot nitinol3, {} tubes",
+        BOARD,
+        reference::N_TUBES
     );
-    let mut pts = [nalgebra_vec(); 32];
-    let mut sum = T::zero();
-    if let Ok(sol) = solver.solve(&robot, Request::new(q, Model::Torsion)) {
-        sum += sol.tip.position.x + sol.tip.orientation().w;
-    }
-    if let Ok(sol) = solver.solve(&robot, Request::new(q, Model::Rigid).backbone(&mut pts)) {
-        sum += sol.tip.position.y;
-    }
-    let loads = ctr_core::Loads {
-        tip_force_n: [x, T::zero(), T::zero()],
-        ..Default::default()
-    };
-    let mut compliance = ctr_core::nalgebra::Matrix6::zeros();
-    let request = Request::new(q, Model::Torsion).loads(loads);
-    if let Ok(sol) = solver.solve(&robot, request.compliance(&mut compliance)) {
-        sum += sol.tip.position.z + compliance[(0, 0)];
-    }
-    let mut jac = JointJacobian::nan();
-    if let Ok(sol) = solver.solve(
-        &robot,
-        Request::new(q, Model::Torsion).joint_jacobian(&mut jac),
-    ) {
-        sum += sol.tip.position.x + jac.feed[0][0] + jac.rotation[2][5];
-    }
-    // effects, clearance kinks and friction moments, with the joint Jacobian
-    let mut effects = ctr_core::Effects {
-        sensor_offset_mm: [T::zero(), T::zero(), T::one()],
-        ..Default::default()
-    };
-    effects.clearance[0] = Some(ctr_core::ClearanceProfile::Cosine {
-        max_deflection_rad: nalgebra_convert(0.04),
-        peak_rad: nalgebra_convert(3.5),
+    // a sum over every kind of request, so that none is optimised away (NaN where a
+    // solve ended without converging and left its outputs NaN)
+    let sum = every_request::run();
+    let exercise = stack::high_water_mark();
+    hprintln!("every kind of request: sum {}", sum);
+    stack::repaint();
+    let (solved64, failed64) = solve_all::<f64>("f64");
+    let reference64 = stack::high_water_mark();
+    stack::repaint();
+    let (solved32, failed32) = solve_all::<f32>("f32");
+    let reference32 = stack::high_water_mark();
+    hprintln!(
+        "stack high-water mark: {} bytes (every kind of request), {} bytes (reference \
+         tables, f64), {} bytes (f32), of {} bytes",
+        exercise.used_bytes,
+        reference64.used_bytes,
+        reference32.used_bytes,
+        exercise.size_bytes
+    );
+    let failed = failed64 + failed32;
+    hprintln!("done {} solved, {} failed", solved64 + solved32, failed);
+    debug::exit(if failed == 0 {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
     });
-    let request =
-        Request::new(q, Model::Torsion)
-            .effects(&effects)
-            .friction([x, T::zero(), T::zero()]);
-    if solver
-        .solve(&robot, request.joint_jacobian(&mut jac))
-        .is_ok()
-    {
-        sum += jac.feed[0][1];
-    }
-    let mut parameters = ParameterJacobian::nan();
-    let request = Request::new(q, Model::Torsion).parameter_jacobian(&mut parameters);
-    if solver.solve(&robot, request).is_ok() {
-        sum += parameters.curvature[1][1];
-    }
-    sum
-}
-
-fn nalgebra_vec<T: ctr_core::Real>() -> ctr_core::nalgebra::Vector3<T> {
-    ctr_core::nalgebra::Vector3::zeros()
-}
-
-fn solve2(x: f64) -> f64 {
-    let robot = match Robot::new([
-        tube::<f64>(1.8, 1.5, 180.0, 60.0, 200.0),
-        tube::<f64>(1.2, 0.9, 260.0, 90.0, 100.0),
-    ]) {
-        Ok(r) => r,
-        Err(_) => return 0.0,
-    };
-    match Solver::default().solve(
-        &robot,
-        Request::new(Joints::new([40.0, 90.0], [0.0, x]), Model::Torsion).cold(),
-    ) {
-        Ok(sol) => sol.tip.position.z,
-        Err(_) => 0.0,
-    }
-}
-
-/// Entry point; the values feed a volatile write so nothing is optimised away.
-#[no_mangle]
-pub extern "C" fn _start() -> ! {
-    let mut sink = 0.0_f64;
-    let x = unsafe_free_input();
-    sink += solve3::<f64>(x) + solve3::<f32>(x as f32) as f64 + solve2(x);
-    let mut cell = [sink];
-    core::hint::black_box(&mut cell);
-    loop {}
-}
-
-fn unsafe_free_input() -> f64 {
-    core::hint::black_box(0.5)
+    halt()
 }
