@@ -140,6 +140,13 @@
 //! a run that stops leaves a valid CSV of its completed rows. An existing recording is
 //! never replaced unless asked.
 //!
+//! # Files from spreadsheets and Windows editors
+//!
+//! Every reader (robot TOML, joint, target and recording CSV) skips a UTF-8 byte-order
+//! mark at the start of the file (spreadsheets write one for "CSV UTF-8") and takes CRLF
+//! line ends: such a file reads exactly as the plain one, with the same lines and
+//! columns in errors.
+//!
 //! # Errors
 //!
 //! Every error is one line: `file[:line[:column]]: message` (see [`Error`]).
