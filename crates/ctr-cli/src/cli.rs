@@ -115,7 +115,7 @@ It prints where the error sits, the effects the model leaves out (of torsion, fr
 clearance, gravity, registration, joint_offset, stiffness, precurvature, latency,
 sensor_offset) with their fitted values and the error before and after on held-out rows,
 and whether what is left is measurement noise. --report writes the JSON report of
-shared/spec/formats.md (with this project's additions: noise, split, located, tried),
+docs/formats.md (with this project's additions: noise, split, located, tried),
 --out the fitted model as a robot file `ctr-cli fk` reads as is, --html one page with
 all of it and the plots that opens offline.
 

@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use std::path::PathBuf;
 
-/// `rel` in `shared/data`.
+/// `rel` in the shared reference data (`tests/data/shared`).
 fn shared(rel: &str) -> PathBuf {
     common::analysis::shared().join(rel)
 }

@@ -1,5 +1,5 @@
 //! The report: the types a diagnosis returns (written as the mismatch report JSON of
-//! `shared/spec/formats.md`) and its plain-language summary.
+//! `docs/formats.md`) and its plain-language summary.
 
 use crate::candidates::EffectId;
 use crate::locate::Statement;
@@ -160,7 +160,7 @@ pub struct Split {
     pub heldout_rows: usize,
 }
 
-/// The mismatch report (`shared/spec/formats.md`) with this project's additions.
+/// The mismatch report (`docs/formats.md`) with this project's additions.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Report {
     /// The user's model.

@@ -9,7 +9,7 @@
 //! A leaf above `ctr-core`: the analysis, the diagnosis, the servo rig (`ctr-hw`) and
 //! both front ends read and write through it, and it depends on none of them.
 //!
-//! The contract is `shared/spec/formats.md`; everything it describes is read and written
+//! The contract is `docs/formats.md`; everything it describes is read and written
 //! as it says. This module adds three optional sections to the robot TOML and columns to
 //! the recording (also described in `data/FORMATS-EXTENSION.md`); files without them
 //! mean what they always meant.

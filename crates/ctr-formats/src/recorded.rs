@@ -1,4 +1,4 @@
-//! Reading a recording (`shared/spec/formats.md`): what a robot was commanded and where
+//! Reading a recording (`docs/formats.md`): what a robot was commanded and where
 //! its tip was measured.
 //!
 //! Required: the joint columns of the robot and `x_mm,y_mm,z_mm`. Optional: `t_s`

@@ -264,11 +264,11 @@ EffectId = Literal[
     "latency",
     "sensor_offset",
 ]
-"""The contract's effect ids (``shared/spec/formats.md``)."""
+"""The contract's effect ids (``docs/formats.md``)."""
 
 class Recording:
     """A recording of the real robot: commanded joints and measured tips, row by row, in
-    runs (``shared/spec/formats.md``), read by :func:`read_recording`.
+    runs (``docs/formats.md``), read by :func:`read_recording`.
 
     Columns come out as new float64 numpy arrays (``m`` rows, ``n`` tubes).
     ``len(recording)`` is ``m``. Immutable, comparable with ``==`` and picklable: it
@@ -452,7 +452,7 @@ class RunErrors(TypedDict):
 
 class Report:
     """The mismatch report of :func:`diagnose` or :func:`calibrate`: the JSON report
-    ``ctr-cli diagnose --report`` writes (``shared/spec/formats.md``: ``baseline``,
+    ``ctr-cli diagnose --report`` writes (``docs/formats.md``: ``baseline``,
     ``findings``, ``final``, ``unexplained``; with this project's ``noise``,
     ``split``, ``located``, ``tried``, ``failed_rows``), the summary the CLI prints and
     the fitted model.
