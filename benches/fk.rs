@@ -31,7 +31,7 @@ use ctr_suite::*;
 use std::hint::black_box;
 use std::time::Duration;
 
-/// Samples of a smooth joint trajectory inside the stable ranges of `shared/data/manifest.json`:
+/// Samples of a smooth joint trajectory inside the stable ranges of `tests/data/shared/manifest.json`:
 /// increments `s_i - s_{i-1}` in `[lo, hi]`, rotations over the full circle.
 fn trajectory<const N: usize>(increments: [(f64, f64); N], samples: usize) -> Vec<Joints<f64, N>> {
     (0..samples)

@@ -26,7 +26,7 @@ def dump(path: Path, *arrays) -> None:
 
 def main() -> None:
     out = Path(sys.argv[1])
-    shared = Path(sys.argv[2]) if len(sys.argv) > 2 else REPO.parent / "shared" / "data"
+    shared = Path(sys.argv[2]) if len(sys.argv) > 2 else REPO / "tests" / "data" / "shared"
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(7)
     for path in sorted((REPO / "data" / "robots").glob("*.toml")):

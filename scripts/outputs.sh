@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Writes the project's public outputs on the bundled examples (and on ../shared/data
-# where it is present) into one directory, so that two versions of the code can be
-# compared file by file with scripts/compare_outputs.py:
+# Writes the project's public outputs on the bundled examples (and on the shared
+# reference data, tests/data/shared or $CTR_SHARED_DATA) into one directory, so that two
+# versions of the code can be compared file by file with scripts/compare_outputs.py:
 #
 #   bash scripts/outputs.sh /tmp/before          # on the old commit
 #   bash scripts/outputs.sh /tmp/after           # on the new one

@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 import ctr_py  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-SHARED = Path(os.environ.get("CTR_SHARED_DATA") or REPO.parent / "shared" / "data")
+SHARED = Path(os.environ.get("CTR_SHARED_DATA") or REPO / "tests" / "data" / "shared")
 RECORDINGS = [
     REPO / "data" / "examples" / "liu2023-recording.csv",
     SHARED / "recordings" / "dev-clearance.csv",

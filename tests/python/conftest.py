@@ -12,7 +12,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 ROBOTS = sorted((REPO / "data" / "robots").glob("*.toml"))
-# the project's copy of `shared/data`, as the Rust tests find it (CTR_SHARED_DATA
+# the project's copy of the shared reference data, as the Rust tests find it (CTR_SHARED_DATA
 # overrides): the shared robots and the recordings with their truth files
 SHARED = Path(os.environ.get("CTR_SHARED_DATA") or REPO / "tests" / "data" / "shared")
 

@@ -74,14 +74,20 @@ def report(liu, rec):
 
 @pytest.fixture(scope="module")
 def cli_diagnosis(cli, tmp_path_factory):
-    """`ctr-cli diagnose` on the same robot and recording: report, fitted file, stdout."""
+    """`ctr-cli diagnose` on the same robot and recording: report, fitted file, stdout,
+    HTML page."""
     d = tmp_path_factory.mktemp("cli-diagnose")
     p = run_cli(
         cli, "diagnose", "--robot", LIU, "--recording", CLEARANCE,
-        "--report", d / "report.json", "--out", d / "fitted.toml",
+        "--report", d / "report.json", "--out", d / "fitted.toml", "--html", d / "report.html",
     )
     assert p.returncode == 0, p.stderr
-    return (d / "report.json").read_text(), (d / "fitted.toml").read_text(), p.stdout
+    return (
+        (d / "report.json").read_text(),
+        (d / "fitted.toml").read_text(),
+        p.stdout,
+        (d / "report.html").read_text(encoding="utf-8"),
+    )
 
 
 # ---------------------------------------------------------------- recordings
@@ -235,7 +241,7 @@ def test_diagnosis_finds_clearance_at_the_noise_floor(report):
 
 
 def test_report_equals_the_cli_report(report, cli_diagnosis):
-    text, fitted, stdout = cli_diagnosis
+    text, fitted, stdout, _ = cli_diagnosis
     assert report.to_dict() == json.loads(text)
     assert report.to_json() == text
     assert json.loads(report.to_json(indent=False)) == json.loads(text)
@@ -283,7 +289,7 @@ def test_fitted_robot_reproduces_the_report(report, rec, liu):
         assert np.sqrt(e2.max()) >= figures["max_mm"] - 1e-9
 
 
-def test_report_pickles(report):
+def test_report_pickles(report, rec):
     for protocol in range(2, pickle.HIGHEST_PROTOCOL + 1):
         again = pickle.loads(pickle.dumps(report, protocol=protocol))
         assert again == report and again is not report
@@ -291,7 +297,31 @@ def test_report_pickles(report):
         assert again.summary() == report.summary()
         assert again.fitted == report.fitted and again.fitted.source == report.fitted.source
     with pytest.raises(ctr_py.InputError, match="Report state"):
-        ctr_py.Report._from_state("[1]", "", report.fitted, "x")
+        ctr_py.Report._from_state("[1]", "", report.fitted, "x", report.fitted, rec)
+
+
+def test_report_html_is_the_clis_page(report, rec, cli_diagnosis):
+    html = cli_diagnosis[3]
+    assert report.to_html() == html
+    # a pickled report keeps its robot and recording: the same page
+    assert pickle.loads(pickle.dumps(report)).to_html() == html
+    assert 'data-explained="true"><strong>Verdict: explained</strong>' in html
+    # error by run, the residual, one per run
+    assert html.count("<svg ") == 2 + len(rec.runs)
+    assert "<script" not in html.lower()
+
+
+def test_spreadsheet_files_read_as_the_plain_ones(tmp_path, liu, rec):
+    """A byte-order mark and CRLF line ends (a spreadsheet's "CSV UTF-8")."""
+    bom = b"\xef\xbb\xbf"
+    for src, name in ((LIU, "robot.toml"), (CLEARANCE, "rec.csv")):
+        (tmp_path / name).write_bytes(bom + src.read_bytes().replace(b"\n", b"\r\n"))
+    robot = ctr_py.Robot.from_toml(tmp_path / "robot.toml")
+    assert robot == liu
+    again = ctr_py.read_recording(tmp_path / "rec.csv", robot)
+    assert again.runs == rec.runs
+    for column in ("joints", "tip", "t_s"):
+        assert np.array_equal(getattr(again, column), getattr(rec, column))
 
 
 def test_diagnose_options_equal_the_cli(cli, tmp_path, liu, rec, report):

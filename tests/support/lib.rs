@@ -1,5 +1,5 @@
 //! Helpers shared by the cross-crate tests and the benches: the robots and reference
-//! tables of `shared/data`, read without the std crate so that ctr-core's own tests
+//! tables of `tests/data/shared`, read without the std crate so that ctr-core's own tests
 //! need nothing but the core.
 #![allow(missing_docs)]
 
@@ -9,7 +9,7 @@ use ctr_core::{Joints, Robot, TubeParams};
 use serde::Deserialize;
 use std::path::PathBuf;
 
-/// The project's copy of `shared/data` (`tests/data/shared`; override with
+/// The project's copy of the shared reference data (`tests/data/shared`; override with
 /// `CTR_SHARED_DATA`).
 pub fn shared_data() -> PathBuf {
     if let Ok(p) = std::env::var("CTR_SHARED_DATA") {
@@ -123,7 +123,7 @@ pub struct RecRow<const N: usize> {
     pub p: [f64; 3],
 }
 
-/// A recording of `shared/data/recordings` and its truth file.
+/// A recording of `tests/data/shared/recordings` and its truth file.
 pub fn recording<const N: usize>(id: &str) -> (Vec<RecRow<N>>, serde_json::Value) {
     let dir = shared_data().join("recordings");
     let mut rdr = csv::Reader::from_path(dir.join(format!("{id}.csv"))).unwrap();

@@ -1,7 +1,7 @@
 //! Effects that need a run's time series: `latency`, and how it composes with the joint
 //! offsets and the play-operator friction of [`ctr_core::friction`].
 //!
-//! Conventions (those of the recordings in `shared/data/recordings`):
+//! Conventions (those of the recordings in `tests/data/shared/recordings`):
 //!
 //! 1. `joint_offset`: actual = commanded + offset.
 //! 2. `latency` (`tau_s`, > 0 a lag): the joints at a row's time `t` are the commanded

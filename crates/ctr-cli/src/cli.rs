@@ -109,14 +109,15 @@ pub enum Command {
 const DIAGNOSE_HELP: &str = "\
 Example:
   ctr-cli diagnose --robot data/robots/liu2023.toml --recording data/examples/liu2023-recording.csv \\
-      --report report.json --out fitted.toml --plots plots/
+      --report report.json --out fitted.toml --plots plots/ --html report.html
 
 It prints where the error sits, the effects the model leaves out (of torsion, friction,
 clearance, gravity, registration, joint_offset, stiffness, precurvature, latency,
 sensor_offset) with their fitted values and the error before and after on held-out rows,
 and whether what is left is measurement noise. --report writes the JSON report of
-shared/spec/formats.md (with this project's additions: noise, split, located, tried),
---out the fitted model as a robot file `ctr-cli fk` reads as is.
+docs/formats.md (with this project's additions: noise, split, located, tried),
+--out the fitted model as a robot file `ctr-cli fk` reads as is, --html one page with
+all of it and the plots that opens offline.
 
 Exit status: 0 success (also when nothing is found), 2 bad input.";
 

@@ -1,11 +1,11 @@
 //! `ctr-cli diagnose`, `ctr-cli calibrate` and `ctr-cli evaluate`: a robot file and a
-//! recording in, the mismatch report, the fitted robot file and plots out. The numerics
-//! are `ctr_diagnosis`'s; this module reads, prints and writes.
+//! recording in, the mismatch report, the fitted robot file, plots and the HTML page
+//! out. The numerics, the plots and the page are `ctr_diagnosis`'s; this module reads,
+//! prints and writes.
 
-use crate::plots;
 use crate::Failure;
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options, Page};
 use ctr_formats::{AtomicFile, Recording, RobotSpec, CLEARANCE_FIT_TABLE_SIZES};
 use std::path::{Path, PathBuf};
 
@@ -32,6 +32,11 @@ pub struct DiagnoseArgs {
     /// Write before/after plots (SVG) into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
+    /// Write the report as one self-contained HTML page (verdict, findings with their
+    /// intervals, plots, what is left, the next run, the fitted robot file; inline SVG
+    /// and CSS, nothing fetched: it opens offline).
+    #[arg(long, value_name = "REPORT.html")]
+    pub html: Option<PathBuf>,
     /// Write the run the report suggests recording next (when parameters are poorly
     /// identified) as a joint file `ctr-cli hw run` plays: t_s and the joint columns.
     /// Written only when a run is suggested; otherwise a line on stderr says why not.
@@ -130,6 +135,7 @@ struct Outputs<'a> {
     out: &'a Option<PathBuf>,
     with_empirical: bool,
     plots: Option<&'a Path>,
+    html: &'a Option<PathBuf>,
     suggest_run: &'a Option<PathBuf>,
 }
 
@@ -144,26 +150,17 @@ fn write_outputs(spec: &RobotSpec, d: &Diagnosis, o: &Outputs<'_>) -> Result<(),
         } else {
             d.fitted_spec(spec)
         };
-        let header = format!(
-            "# Fitted by ctr-cli from {}: {}{}\n",
-            spec.name.as_deref().unwrap_or("the robot file"),
-            if d.report.findings.is_empty() {
-                "no effect added".to_owned()
-            } else {
-                d.report
-                    .findings
-                    .iter()
-                    .map(|f| f.effect.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            },
-            if o.with_empirical && d.empirical.is_some() {
-                "; and an empirical term (not physics) in [model.empirical]"
-            } else {
-                ""
-            }
-        );
-        write_text(path, &(header + &fitted.to_toml()))?;
+        let effects: Vec<&str> = d
+            .report
+            .findings
+            .iter()
+            .map(|f| f.effect.as_str())
+            .collect();
+        let with_empirical = o.with_empirical && d.empirical.is_some();
+        write_text(
+            path,
+            &ctr_diagnosis::fitted_file(&fitted, &effects, with_empirical),
+        )?;
     }
     if let Some(path) = o.suggest_run {
         match &d.suggested_joints {
@@ -178,23 +175,46 @@ fn write_outputs(spec: &RobotSpec, d: &Diagnosis, o: &Outputs<'_>) -> Result<(),
     Ok(())
 }
 
+/// Writes the plots and the HTML page, when asked for.
+fn write_drawings(
+    spec: &RobotSpec,
+    rec: &Recording,
+    d: &Diagnosis,
+    o: &Outputs<'_>,
+) -> Result<(), Failure> {
+    if o.plots.is_none() && o.html.is_none() {
+        return Ok(());
+    }
+    let failed = |e: DiagnoseError| Failure::Input(format!("{}: {e}", rec.file));
+    let page = Page::new(&d.report, rec, spec, &d.fitted_spec(spec)).map_err(failed)?;
+    if let Some(dir) = o.plots {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| Failure::Input(format!("{}: cannot create: {e}", dir.display())))?;
+        for plot in page.plots().map_err(failed)? {
+            write_text(&dir.join(&plot.file_name), &plot.svg)?;
+        }
+    }
+    if let Some(path) = o.html {
+        write_text(path, &page.to_html().map_err(failed)?)?;
+    }
+    Ok(())
+}
+
 /// The course of `diagnose` and `calibrate`: checks that the outputs can be written,
 /// reads the robot and the recording, runs `fit` on the robot's model, writes the
-/// outputs (and the plots) and prints the summary.
+/// outputs (the plots and the page too) and prints the summary.
 fn fit_and_write(
     robot: &Path,
     recording: &Path,
     o: &Outputs<'_>,
     fit: impl FnOnce(&ModelSpec, &Recording) -> Result<Diagnosis, DiagnoseError>,
 ) -> Result<(), Failure> {
-    check_outputs(&[o.report, o.out, o.suggest_run])?;
+    check_outputs(&[o.report, o.out, o.html, o.suggest_run])?;
     let (spec, rec) = load(robot, recording)?;
     let model = ModelSpec::from_spec(&spec);
     let d = fit(&model, &rec).map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
     write_outputs(&spec, &d, o)?;
-    if let Some(dir) = o.plots {
-        plots::write_all(dir, &rec, &model, &d).map_err(Failure::Input)?;
-    }
+    write_drawings(&spec, &rec, &d, o)?;
     print!("{}", d.report.summary(&rec.file));
     Ok(())
 }
@@ -212,6 +232,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         out: &args.out,
         with_empirical: args.with_empirical,
         plots: args.plots.as_deref(),
+        html: &args.html,
         suggest_run: &args.suggest_run,
     };
     fit_and_write(&args.robot, &args.recording, &outputs, |model, rec| {
@@ -232,6 +253,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
         out: &args.out,
         with_empirical: false,
         plots: None,
+        html: &None,
         suggest_run: &None,
     };
     fit_and_write(&args.robot, &args.recording, &outputs, |model, rec| {

@@ -13,7 +13,6 @@
 mod cli;
 mod diagnose;
 mod hw;
-mod plots;
 mod progress;
 
 use clap::Parser;

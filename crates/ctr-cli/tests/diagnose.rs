@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use std::path::PathBuf;
 
-/// `rel` in `shared/data`.
+/// `rel` in the shared reference data (`tests/data/shared`).
 fn shared(rel: &str) -> PathBuf {
     common::analysis::shared().join(rel)
 }
@@ -17,6 +17,7 @@ fn diagnose_writes_report_fitted_model_and_plots() {
     let report = dir.path().join("report.json");
     let fitted = dir.path().join("fitted.toml");
     let plots = dir.path().join("plots");
+    let html = dir.path().join("report.html");
     let robot = shared("robots/liu2023.toml");
     let rec = shared("recordings/dev-clearance.csv");
     let o = run(&[
@@ -31,6 +32,8 @@ fn diagnose_writes_report_fitted_model_and_plots() {
         arg(&fitted),
         "--plots",
         arg(&plots),
+        "--html",
+        arg(&html),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
@@ -74,6 +77,13 @@ fn diagnose_writes_report_fitted_model_and_plots() {
         "{names:?}"
     );
     assert!(names.iter().any(|n| n == "run-rot-inner.svg"), "{names:?}");
+    // the page: the verdict, the finding, every plot inline, the same SVG as the files
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.contains("data-explained=\"true\"><strong>Verdict: explained</strong>"));
+    assert!(page.contains("<h3><code>clearance</code></h3>"));
+    assert_eq!(page.matches("<svg ").count(), names.len());
+    let run_plot = std::fs::read_to_string(plots.join("run-rot-inner.svg")).unwrap();
+    assert!(page.contains(run_plot.trim_end()));
     // the fitted model is a robot file: evaluate reads it and it is better on every run
     let o = run(&[
         "evaluate",

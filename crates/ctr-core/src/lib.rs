@@ -7,7 +7,7 @@
 //! (2023) 3709, generalised to `N` tubes (1 to [`MAX_TUBES`]) with the transmissions
 //! behind the guide twisting too; the equations are in [`integrate::twist`].
 //!
-//! Conventions (`shared/spec/formats.md`): tube 1 (index 0) is the outermost; `s_i` is
+//! Conventions (`docs/formats.md`): tube 1 (index 0) is the outermost; `s_i` is
 //! tube i's exposed length beyond the guide exit, `theta_i` its actuator angle about +z;
 //! W has its origin at the guide exit and +z along insertion, +x where tube 1 bends with
 //! zero rotations and a positive radius. Lengths are mm, angles rad inside the core.

@@ -1,4 +1,4 @@
-//! The effects follow the conventions of `shared/data/recordings/*.truth.json`: with
+//! The effects follow the conventions of `tests/data/shared/recordings/*.truth.json`: with
 //! the concealed effect switched on at its true value the model explains each
 //! recording down to its noise floor, and without it the error is far larger.
 use ctr_core::effects::{ClearanceProfile, Effects, Registration};
@@ -67,7 +67,7 @@ fn errors<'a, const N: usize>(
     }
 }
 
-/// A recording of `shared/data/recordings`, its truth file, and the shared robot `robot`
+/// A recording of `tests/data/shared/recordings`, its truth file, and the shared robot `robot`
 /// it was made on.
 fn load<const N: usize>(id: &str, robot_name: &str) -> (Robot<f64, N>, Vec<RecRow<N>>, Value) {
     let (rows, truth) = recording::<N>(id);

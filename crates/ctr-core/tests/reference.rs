@@ -1,4 +1,4 @@
-//! The core reproduces the independent simulator's tables in `shared/data/reference`.
+//! The core reproduces the independent simulator's tables in `tests/data/shared/reference`.
 
 use ctr_core::{Model, Request, Solution, Solver, Status};
 use ctr_suite::*;

@@ -3,7 +3,7 @@
 use ctr_core::{Joints, Model, Request, Robot, Solver, TubeParams};
 use ctr_suite::*;
 
-/// The seed's robot with transmissions 100 mm longer (shared/data/robots/liu2023.toml
+/// The seed's robot with transmissions 100 mm longer (tests/data/shared/robots/liu2023.toml
 /// notes it snaps when the curved parts overlap far): at opposed curvatures the margin
 /// falls linearly to zero and changes sign where the symmetric solution loses
 /// stability; just off the symmetric angle, a warm-started feed jumps there (a snap).

@@ -184,7 +184,7 @@ fn edge_configurations_solve() {
 }
 
 /// The seed's robot with transmissions 100 mm longer snaps when the curved parts overlap
-/// far (see shared/data/robots/liu2023.toml). Across a wide sweep that includes the
+/// far (see tests/data/shared/robots/liu2023.toml). Across a wide sweep that includes the
 /// unstable region, a solve either converges to finite numbers or says it did not.
 #[test]
 fn never_nan_when_converged_even_past_a_snap() {

@@ -21,7 +21,7 @@ const LAG_S: f64 = 0.3;
 /// Tracker noise per axis, mm, and the fraction of rows with an outlier.
 const NOISE_MM: f64 = 0.2;
 const OUTLIERS: f64 = 0.005;
-/// The robot's stable ranges (`shared/data/manifest.json`): s1, s2 - s1 in mm.
+/// The robot's stable ranges (`tests/data/shared/manifest.json`): s1, s2 - s1 in mm.
 const INCREMENTS_MM: [[f64; 2]; 2] = [[20.0, 70.0], [25.0, 95.0]];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -23,7 +23,7 @@ use ctr_formats::{
 };
 use serde::Serialize;
 
-/// An effect id of the contract (`shared/spec/formats.md`).
+/// An effect id of the contract (`docs/formats.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EffectId {

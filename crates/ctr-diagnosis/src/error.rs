@@ -7,6 +7,8 @@ pub enum DiagnoseError {
     Model(String),
     /// The split leaves no fit rows or no held-out rows.
     Split(String),
+    /// A plot of the report could not be drawn.
+    Plot(String),
 }
 
 impl std::fmt::Display for DiagnoseError {
@@ -14,6 +16,7 @@ impl std::fmt::Display for DiagnoseError {
         match self {
             DiagnoseError::Model(m) => write!(f, "{m}"),
             DiagnoseError::Split(m) => write!(f, "{m}"),
+            DiagnoseError::Plot(m) => write!(f, "{m}"),
         }
     }
 }

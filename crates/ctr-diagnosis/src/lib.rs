@@ -54,7 +54,8 @@
 //! identifiability), `numbers` (a JSON value's numbers by key path),
 //! `calibrate` and `evaluate` (no search), `start` (what both start from and how both
 //! finish), `report` ([`Report`] and its [`summary`](Report::summary)), `prose` (the
-//! words), `options`, `error`. The fits run on the one thread pool,
+//! words), `plots` (the SVG plots drawn from a report and its recording, [`Plot`]),
+//! `html` (the report as one self-contained page, [`Page`]), `options`, `error`. The fits run on the one thread pool,
 //! `ctr_formats::parallel`; results do not depend on the thread count.
 //!
 //! With the `synth` feature (off by default), `synth` generates recordings with
@@ -67,11 +68,13 @@ mod empirical;
 mod error;
 mod evaluate;
 mod fit;
+mod html;
 mod hybrid;
 pub mod locate;
 mod noise;
 mod numbers;
 mod options;
+mod plots;
 mod prose;
 mod report;
 mod residual;
@@ -89,13 +92,15 @@ pub use calibrate::calibrate;
 pub use candidates::EffectId;
 pub use error::DiagnoseError;
 pub use evaluate::evaluate;
+pub use html::{escape_html, Page};
 pub use hybrid::{FOLDS, MAX_TERMS};
 pub use locate::Statement;
 pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::Options;
+pub use plots::Plot;
 pub use report::{
-    Correlated, Diagnosis, Empirical, ExpectedInterval, Figures, Finding, JointRun, Noise, Report,
-    RunErrors, Split, SuggestedRun, Term, Trial,
+    fitted_file, Correlated, Diagnosis, Empirical, ExpectedInterval, Figures, Finding, JointRun,
+    Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};

@@ -76,6 +76,16 @@ fn features(rec: &Recording) -> Vec<Feature> {
     out
 }
 
+/// The values over the rows of the feature a statement names (`s2`, `s2 - s1`,
+/// `time t_s`, `theta2 - theta1`, ...; `None` for a run's label or the tip position):
+/// what the plots draw the error against.
+pub(crate) fn feature_values(rec: &Recording, name: &str) -> Option<Vec<f64>> {
+    features(rec)
+        .into_iter()
+        .find(|f| f.name == name)
+        .map(|f| f.values)
+}
+
 /// Least squares of the error vectors (3 columns) on the regressors `x` (rows with
 /// `mask`): the squared error explained, as a share of the rows' SSE about zero.
 fn explained(e: &[[f64; 3]], x: &[Vec<f64>], mask: &[bool]) -> f64 {

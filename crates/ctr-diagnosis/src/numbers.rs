@@ -35,6 +35,64 @@ pub(crate) fn leaves(v: &Value, path: &str, out: &mut Vec<(String, f64)>) {
     }
 }
 
+/// A parameter (or an identified combination) with its value and the ends of its 95 %
+/// interval (`None`: the data set no bound there).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Interval {
+    /// Its key path in the parameters (`tau_s`, `peak_deg[0]`) or the combination in
+    /// words.
+    pub name: String,
+    /// The fitted value.
+    pub value: f64,
+    /// Lower end.
+    pub lo: Option<f64>,
+    /// Upper end.
+    pub hi: Option<f64>,
+}
+
+/// A finding's parameters with their intervals (`ci95`, the same shape with each number
+/// `[lo, hi]`), and after them the combinations `ci95.identified` lists.
+pub(crate) fn intervals(params: &Value, ci95: &Value) -> (Vec<Interval>, Vec<Interval>) {
+    let mut values = Vec::new();
+    leaves(params, "", &mut values);
+    let mut bounds = Vec::new();
+    let without = match ci95 {
+        Value::Object(m) => {
+            let mut m = m.clone();
+            m.remove("identified");
+            Value::Object(m)
+        }
+        other => other.clone(),
+    };
+    leaves(&without, "", &mut bounds);
+    let end = |name: &str, k: usize| {
+        let path = format!("{name}[{k}]");
+        bounds.iter().find(|(p, _)| *p == path).map(|(_, v)| *v)
+    };
+    let parameters = values
+        .into_iter()
+        .map(|(name, value)| Interval {
+            lo: end(&name, 0),
+            hi: end(&name, 1),
+            name,
+            value,
+        })
+        .collect();
+    let identified = ci95
+        .get("identified")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+        .map(|c| Interval {
+            name: c["combination"].as_str().unwrap_or("?").to_owned(),
+            value: c["value"].as_f64().unwrap_or(f64::NAN),
+            lo: c["ci95"][0].as_f64(),
+            hi: c["ci95"][1].as_f64(),
+        })
+        .collect();
+    (parameters, identified)
+}
+
 /// `v` with each number replaced by the next interval of `ints`.
 pub(crate) fn replace(v: &Value, ints: &mut impl Iterator<Item = [Option<f64>; 2]>) -> Value {
     match v {

@@ -1,9 +1,9 @@
 //! The report: the types a diagnosis returns (written as the mismatch report JSON of
-//! `shared/spec/formats.md`) and its plain-language summary.
+//! `docs/formats.md`) and its plain-language summary.
 
 use crate::candidates::EffectId;
 use crate::locate::Statement;
-use crate::numbers::{leaves, sig};
+use crate::numbers::{self, sig};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Correction, RobotSpec};
 use serde::Serialize;
@@ -160,7 +160,7 @@ pub struct Split {
     pub heldout_rows: usize,
 }
 
-/// The mismatch report (`shared/spec/formats.md`) with this project's additions.
+/// The mismatch report (`docs/formats.md`) with this project's additions.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Report {
     /// The user's model.
@@ -387,6 +387,35 @@ impl Diagnosis {
     }
 }
 
+/// The fitted robot file as `ctr-cli diagnose --out` writes it: a comment line naming
+/// the robot and the effects added (`effects`, contract ids in the report's order; and,
+/// with `with_empirical`, the empirical term in `[model.empirical]`), then `fitted`'s
+/// TOML, which `ctr-cli fk` reads as is.
+///
+/// ```
+/// let spec = ctr_formats::RobotSpec::from_path(std::path::Path::new("../../data/robots/liu2023.toml"))?;
+/// let text = ctr_diagnosis::fitted_file(&spec, &["latency"], false);
+/// assert!(text.starts_with("# Fitted by ctr-cli from liu2023: latency\nname = \"liu2023\"\n"));
+/// # Ok::<(), ctr_formats::Error>(())
+/// ```
+pub fn fitted_file(fitted: &RobotSpec, effects: &[&str], with_empirical: bool) -> String {
+    format!(
+        "# Fitted by ctr-cli from {}: {}{}\n{}",
+        fitted.name.as_deref().unwrap_or("the robot file"),
+        if effects.is_empty() {
+            "no effect added".to_owned()
+        } else {
+            effects.join(", ")
+        },
+        if with_empirical {
+            "; and an empirical term (not physics) in [model.empirical]"
+        } else {
+            ""
+        },
+        fitted.to_toml()
+    )
+}
+
 /// Tip errors of one run under several models (the seed paper's Table 2).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RunErrors {
@@ -403,44 +432,33 @@ pub struct RunErrors {
 /// A finding's parameters with their intervals, in words: `tau_s 0.7500 (0.7412 to
 /// 0.7588)`; `identified` combinations after them.
 pub(crate) fn intervals(params: &serde_json::Value, ci95: &serde_json::Value) -> String {
-    let mut values = Vec::new();
-    leaves(params, "", &mut values);
-    let mut bounds = Vec::new();
-    let without = match ci95 {
-        serde_json::Value::Object(m) => {
-            let mut m = m.clone();
-            m.remove("identified");
-            serde_json::Value::Object(m)
-        }
-        other => other.clone(),
-    };
-    leaves(&without, "", &mut bounds);
-    let end = |v: Option<&(String, f64)>| v.map_or("?".to_string(), |(_, v)| sig(*v));
-    let mut parts: Vec<String> = values
+    let (parameters, identified) = numbers::intervals(params, ci95);
+    let end = |v: Option<f64>| v.map_or("?".to_string(), sig);
+    let mut parts: Vec<String> = parameters
         .iter()
-        .map(|(name, v)| {
-            let lo = bounds.iter().find(|(p, _)| *p == format!("{name}[0]"));
-            let hi = bounds.iter().find(|(p, _)| *p == format!("{name}[1]"));
-            if lo.is_none() && hi.is_none() {
-                format!("{name} {} (not bounded)", sig(*v))
+        .map(|p| {
+            if p.lo.is_none() && p.hi.is_none() {
+                format!("{} {} (not bounded)", p.name, sig(p.value))
             } else {
-                format!("{name} {} ({} to {})", sig(*v), end(lo), end(hi))
+                format!(
+                    "{} {} ({} to {})",
+                    p.name,
+                    sig(p.value),
+                    end(p.lo),
+                    end(p.hi)
+                )
             }
         })
         .collect();
-    if let Some(ids) = ci95.get("identified").and_then(|v| v.as_array()) {
-        for c in ids {
-            let name = c["combination"].as_str().unwrap_or("?");
-            let v = c["value"].as_f64().unwrap_or(f64::NAN);
-            let lo = c["ci95"][0].as_f64().unwrap_or(f64::NAN);
-            let hi = c["ci95"][1].as_f64().unwrap_or(f64::NAN);
-            parts.push(format!(
-                "identified {name} {} ({} to {})",
-                sig(v),
-                sig(lo),
-                sig(hi)
-            ));
-        }
+    for c in &identified {
+        let nan = |v: Option<f64>| sig(v.unwrap_or(f64::NAN));
+        parts.push(format!(
+            "identified {} {} ({} to {})",
+            c.name,
+            sig(c.value),
+            nan(c.lo),
+            nan(c.hi)
+        ));
     }
     parts.join(", ")
 }

@@ -94,7 +94,7 @@ const FULL_TURN_DEG: f64 = 360.0;
 /// an actuator's are (and as the shared recordings write them).
 pub const COMMAND_DECIMALS: i32 = 4;
 
-/// Joint ranges the experiments stay inside, as `shared/data/manifest.json`'s
+/// Joint ranges the experiments stay inside, as `tests/data/shared/manifest.json`'s
 /// `valid_ranges`: each tube's feed increment `s_i - s_{i-1}` (with `s_0 = 0`), mm, and
 /// the rotations, degrees.
 ///
@@ -116,7 +116,7 @@ pub struct Ranges {
 
 impl Ranges {
     /// The `valid_ranges` of `robot` in the text of a manifest like
-    /// `shared/data/manifest.json` (`robots.<robot>.valid_ranges.{increments, theta_deg}`).
+    /// `tests/data/shared/manifest.json` (`robots.<robot>.valid_ranges.{increments, theta_deg}`).
     pub fn from_manifest(manifest_json: &str, robot: &str) -> Result<Ranges, String> {
         let v: serde_json::Value =
             serde_json::from_str(manifest_json).map_err(|e| format!("manifest: {e}"))?;

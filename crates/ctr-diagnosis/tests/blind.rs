@@ -107,7 +107,7 @@ impl Case {
     }
 }
 
-/// A shared robot and its stable ranges (`shared/data/manifest.json`).
+/// A shared robot and its stable ranges (`tests/data/shared/manifest.json`).
 fn robot_and_ranges(name: &str) -> (RobotSpec, Ranges) {
     let manifest = std::fs::read_to_string(shared().join("manifest.json")).unwrap();
     (robot(name), Ranges::from_manifest(&manifest, name).unwrap())

@@ -41,8 +41,8 @@
 //! The order in which they act on a row: joint offsets, then latency along the run,
 //! then friction on the delayed path (`ctr_analysis::timeline`); the mechanics with the
 //! scaled tubes, clearance kinks and gravity; then the sensor offset and the
-//! registration (`shared/spec/formats.md`'s conventions, those of
-//! `shared/data/recordings/*.truth.json`). Clearance and gravity together are not
+//! registration (`docs/formats.md`'s conventions, those of
+//! `tests/data/shared/recordings/*.truth.json`). Clearance and gravity together are not
 //! modelled (the loaded solver has no kinks) and are refused.
 
 use ctr_core::effects::{

@@ -9,7 +9,7 @@
 //! A leaf above `ctr-core`: the analysis, the diagnosis, the servo rig (`ctr-hw`) and
 //! both front ends read and write through it, and it depends on none of them.
 //!
-//! The contract is `shared/spec/formats.md`; everything it describes is read and written
+//! The contract is `docs/formats.md`; everything it describes is read and written
 //! as it says. This module adds three optional sections to the robot TOML and columns to
 //! the recording (also described in `data/FORMATS-EXTENSION.md`); files without them
 //! mean what they always meant.
@@ -142,6 +142,13 @@
 //! its completed rows, a killed one leaves them in the journal, and the recording's path
 //! holds the previous file or a finished run's, never a part. An existing recording is
 //! never replaced unless asked.
+//!
+//! # Files from spreadsheets and Windows editors
+//!
+//! Every reader (robot TOML, joint, target and recording CSV) skips a UTF-8 byte-order
+//! mark at the start of the file (spreadsheets write one for "CSV UTF-8") and takes CRLF
+//! line ends: such a file reads exactly as the plain one, with the same lines and
+//! columns in errors.
 //!
 //! # Errors
 //!

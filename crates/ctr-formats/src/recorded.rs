@@ -1,4 +1,4 @@
-//! Reading a recording (`shared/spec/formats.md`): what a robot was commanded and where
+//! Reading a recording (`docs/formats.md`): what a robot was commanded and where
 //! its tip was measured.
 //!
 //! Required: the joint columns of the robot and `x_mm,y_mm,z_mm`. Optional: `t_s`
@@ -103,7 +103,7 @@ impl Recording {
                     },
                 ))
             }
-            Some(r) => r.map_err(|e| csv_error(e, file))?,
+            Some(r) => r.map_err(|e| csv_error(e, file, data, &mut LineCounter::default()))?,
         };
         let names: Vec<&str> = header.iter().map(str::trim).collect();
         for (i, n) in names.iter().enumerate() {
@@ -160,9 +160,10 @@ impl Recording {
 
         let mut rows = Vec::new();
         let mut runs: Vec<Run> = Vec::new();
-        for (k, record) in records.enumerate() {
-            let record = record.map_err(|e| csv_error(e, file))?;
-            let line = record.position().map_or(k + 2, |p| p.line() as usize);
+        let mut lines = LineCounter::default();
+        for record in records {
+            let record = record.map_err(|e| csv_error(e, file, data, &mut lines))?;
+            let line = lines.line_at(data, record_start(data, record.position()));
             let at = |kind| Error::new(Location::line(file, line), kind);
             if record.len() != width {
                 return Err(at(ErrorKind::RaggedRow {
@@ -285,8 +286,41 @@ fn find_in(need: &[String], name: &str) -> bool {
     !need.iter().any(|c| c == name)
 }
 
-fn csv_error(e: csv::Error, file: &str) -> Error {
-    let line = e.position().map(|p| p.line() as usize);
+/// The 1-based line of a byte offset, counted forward from the last offset asked (the
+/// csv crate's own line numbers count a CRLF file's line ends twice).
+#[derive(Default)]
+struct LineCounter {
+    byte: usize,
+    /// newlines before `byte`
+    newlines: usize,
+}
+
+impl LineCounter {
+    /// The line holding `data[at]`; `at` must not be before the previous call's.
+    fn line_at(&mut self, data: &[u8], at: usize) -> usize {
+        let at = at.clamp(self.byte, data.len());
+        self.newlines += memchr::memchr_iter(b'\n', &data[self.byte..at]).count();
+        self.byte = at;
+        self.newlines + 1
+    }
+}
+
+/// Where a record read by the csv crate starts: its position may point at the line end
+/// before it (the `\n` of a CRLF, which the crate reads as an empty record and skips).
+fn record_start(data: &[u8], position: Option<&csv::Position>) -> usize {
+    let from = position
+        .map_or(data.len(), |p| p.byte() as usize)
+        .min(data.len());
+    from + data[from..]
+        .iter()
+        .take_while(|&&b| b == b'\n' || b == b'\r')
+        .count()
+}
+
+fn csv_error(e: csv::Error, file: &str, data: &[u8], lines: &mut LineCounter) -> Error {
+    let line = e
+        .position()
+        .map(|p| lines.line_at(data, record_start(data, Some(p))));
     let message = match e.kind() {
         csv::ErrorKind::Utf8 { err, .. } => {
             format!("field {}: not valid UTF-8 text", err.field() + 1)

@@ -5,7 +5,7 @@
 use super::actuation::{ActuatedJoint, ActuationSection};
 use super::effects::Effects;
 use super::empirical::{Correction, Empirical};
-use super::toml_doc::{exact_opt, line_col, one_line, path_at, span_of, Key};
+use super::toml_doc::{exact_opt, line_col, one_line, path_at, span_of, without_bom, Key};
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::AnyRobot;
 use ctr_core::{Model, RobotError, TubeParams};
@@ -280,8 +280,10 @@ pub struct RobotSpec {
 }
 
 impl RobotFile {
-    /// Parses TOML text; `file` names it in errors, which carry line and column.
+    /// Parses TOML text (a leading byte-order mark is skipped; CRLF line ends are TOML);
+    /// `file` names it in errors, which carry line and column.
     pub fn parse(text: &str, file: &str) -> Result<RobotFile, Error> {
+        let text = without_bom(text);
         toml::from_str(text).map_err(|e| {
             let mut location = Location::file(file);
             let mut message = one_line(e.message());
@@ -438,6 +440,7 @@ impl RobotSpec {
     /// assert_eq!(err.to_string(), "r.toml:2:21: tube 1: outer_diameter_mm = 1.8 must be larger than inner_diameter_mm = 1.9");
     /// ```
     pub fn from_toml_str(text: &str, file: &str) -> Result<RobotSpec, Error> {
+        let text = without_bom(text);
         let parsed = RobotFile::parse(text, file)?;
         parsed.check().map_err(|(kind, path)| {
             let mut location = Location::file(file);

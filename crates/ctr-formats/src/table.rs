@@ -7,7 +7,8 @@
 //! with one is read by the csv crate, which handles quoting, and its fields are kept as
 //! a record. Both give exactly what the csv crate's reader gives (default settings,
 //! flexible rows): `\n`, `\r\n` and `\r` end records, empty lines are skipped, and
-//! quoted fields may hold commas, quotes and line breaks.
+//! quoted fields may hold commas, quotes and line breaks. A UTF-8 byte-order mark at the
+//! start (what spreadsheets write for "CSV UTF-8") is skipped, as the csv crate does.
 
 use crate::error::{Error, ErrorKind, Location};
 
@@ -33,8 +34,18 @@ struct RowSpan {
 
 const QUOTED: usize = usize::MAX;
 
-/// The UTF-8 byte order mark.
-const BOM: &[u8] = b"\xef\xbb\xbf";
+/// The UTF-8 encoding of U+FEFF, the byte-order mark spreadsheets and Windows editors
+/// put before the first byte of a "UTF-8" file.
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// How many bytes of `data` a leading byte-order mark takes (0 or 3).
+pub(crate) fn bom_len(data: &[u8]) -> usize {
+    if data.starts_with(UTF8_BOM) {
+        UTF8_BOM.len()
+    } else {
+        0
+    }
+}
 
 /// Rows per chunk of the parallel number parsing.
 const PARSE_CHUNK_ROWS: usize = 4096;
@@ -130,7 +141,7 @@ impl Records<'_> {
             // a reader strips a byte order mark that opens its input, as the csv crate
             // does at the start of a file only: a record after the first that opens
             // with one gets a plain byte before it, taken off its first field again
-            let guard = usize::from(start > 0 && data[start..].starts_with(BOM));
+            let guard = usize::from(start > 0 && data[start..].starts_with(UTF8_BOM));
             let input = std::io::Read::chain(&b"_"[..guard], &data[start..]);
             let mut rdr = csv::ReaderBuilder::new()
                 .has_headers(false)
@@ -242,7 +253,7 @@ impl Table {
         let mut records = Records {
             data: &data,
             file,
-            pos: 0,
+            pos: bom_len(&data),
             line: 1,
         };
         let Some((first, header_line)) = records.next()? else {

@@ -125,6 +125,12 @@ pub(crate) fn line_col(text: &str, at: usize) -> (usize, usize) {
     (line, before[line_start..].chars().count() + 1)
 }
 
+/// `text` without a leading byte-order mark (U+FEFF, which Windows editors write before
+/// "UTF-8" text): positions in errors are then the lines and columns an editor shows.
+pub(crate) fn without_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
 /// Joins a multi-line message into one line.
 pub(crate) fn one_line(s: &str) -> String {
     s.lines()

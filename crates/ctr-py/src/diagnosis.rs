@@ -8,18 +8,19 @@
 //! attributes equal the parsed CLI file exactly, `NaN` written as `null` included, and
 //! the indented text is `serde_json`'s, as `ctr-cli diagnose --report` writes it), the
 //! CLI's summary text and the fitted model as a `Robot` (the robot file `--out` writes,
-//! without its comment line).
+//! without its comment line), and the user's robot and the recording it was made from,
+//! from which `to_html()` draws the page `ctr-cli diagnose --html` writes
+//! (`ctr_diagnosis::Page`, from the same JSON text: the same bytes).
 
 use crate::errors;
 use crate::json::Json;
 use crate::recording::{self, Recording};
 use crate::robot::{check_threads, Robot, MAX_THREADS};
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options, Page};
 use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
-use std::borrow::Cow;
 use std::path::PathBuf;
 
 /// `holdout=`: `None` (the default split, blocks:4) or the CLI's string.
@@ -86,13 +87,9 @@ fn threads_opt(threads: Option<i64>) -> PyResult<usize> {
     }
 }
 
-/// The recording argument: a `Recording` of the robot's tube count, or a path read with
-/// the robot's joint columns.
-fn recording_arg<'a>(
-    py: Python<'_>,
-    obj: &'a Bound<'_, PyAny>,
-    robot: &Robot,
-) -> PyResult<Cow<'a, ctr_formats::Recording>> {
+/// The recording argument: a `Recording` of the robot's tube count (the same object), or
+/// a path read with the robot's joint columns.
+fn recording_arg(py: Python<'_>, obj: &Bound<'_, PyAny>, robot: &Robot) -> PyResult<Py<Recording>> {
     let n = robot.spec().robot.n_tubes();
     if let Ok(r) = obj.cast::<Recording>() {
         let rec = &r.get().rec;
@@ -105,8 +102,7 @@ fn recording_arg<'a>(
                 rec.n_tubes
             )));
         }
-        // the Recording lives as long as `obj`
-        return Ok(Cow::Borrowed(rec));
+        return Ok(r.clone().unbind());
     }
     let path: PathBuf = obj.extract().map_err(|_| {
         errors::input_type(format!(
@@ -114,7 +110,8 @@ fn recording_arg<'a>(
             type_name(obj)
         ))
     })?;
-    Ok(Cow::Owned(recording::read(py, &path, n)?))
+    let rec = recording::read(py, &path, n)?;
+    Py::new(py, Recording { rec })
 }
 
 /// A diagnosis's or calibration's report; see `_ctr.pyi`.
@@ -130,25 +127,37 @@ pub struct Report {
     fitted: Py<Robot>,
     /// The recording's file name.
     recording: String,
+    /// The user's robot.
+    user: Py<Robot>,
+    /// The recording the report was made from.
+    rec: Py<Recording>,
 }
+
+/// What a pickled `Report` holds: the JSON text, the summary, the fitted robot, the
+/// recording's file name, the user's robot and the recording.
+type State = (String, String, Py<Robot>, String, Py<Robot>, Py<Recording>);
 
 impl Report {
     fn new(
         py: Python<'_>,
         d: &Diagnosis,
-        robot: &Robot,
-        rec: &ctr_formats::Recording,
+        robot: &Bound<'_, Robot>,
+        rec: Py<Recording>,
     ) -> PyResult<Self> {
         let json = serde_json::to_string(&d.report)
             .map_err(|e| errors::input(format!("internal: the report does not serialize: {e}")))?;
-        let fitted = d.fitted_spec(robot.spec());
-        let fitted = Robot::new(fitted, format!("{} (fitted)", robot.source_name()));
+        let user = robot.get();
+        let fitted = d.fitted_spec(user.spec());
+        let fitted = Robot::new(fitted, format!("{} (fitted)", user.source_name()));
+        let file = rec.get().rec.file.clone();
         Report::_from_state(
             py,
             json,
-            d.report.summary(&rec.file),
+            d.report.summary(&file),
             Py::new(py, fitted)?,
-            rec.file.clone(),
+            file,
+            robot.clone().unbind(),
+            rec,
         )
     }
 
@@ -168,6 +177,8 @@ impl Report {
         summary: String,
         fitted: Py<Robot>,
         recording: String,
+        user: Py<Robot>,
+        rec: Py<Recording>,
     ) -> PyResult<Self> {
         let parsed = py
             .import("json")?
@@ -183,21 +194,23 @@ impl Report {
             summary,
             fitted,
             recording,
+            user,
+            rec,
         })
     }
 
-    #[allow(clippy::type_complexity)]
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (String, String, Py<Robot>, String))> {
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, State)> {
         let r = slf.get();
+        let py = slf.py();
         Ok((
             slf.get_type().getattr("_from_state")?,
             (
                 r.json.clone(),
                 r.summary.clone(),
-                r.fitted.clone_ref(slf.py()),
+                r.fitted.clone_ref(py),
                 r.recording.clone(),
+                r.user.clone_ref(py),
+                r.rec.clone_ref(py),
             ),
         ))
     }
@@ -242,6 +255,17 @@ impl Report {
     /// The plain-language summary `ctr-cli` prints.
     fn summary(&self) -> &str {
         &self.summary
+    }
+
+    /// The report as one self-contained HTML page, the bytes `ctr-cli diagnose --html`
+    /// writes for the same robot, recording and options.
+    fn to_html(&self, py: Python<'_>) -> PyResult<String> {
+        let (rec, user, fitted) = (&self.rec.get().rec, self.user.get(), self.fitted.get());
+        let json = &self.json;
+        py.detach(|| {
+            Page::from_json(json, rec, user.spec(), fitted.spec()).and_then(|p| p.to_html())
+        })
+        .map_err(|e| errors::input(format!("{}: {e}", rec.file)))
     }
 
     /// The fitted model: the robot with its `[model]` and the effects found, fitted.
@@ -367,17 +391,17 @@ impl Report {
 /// prints it.
 fn fit_report(
     py: Python<'_>,
-    robot: &Robot,
+    robot: &Bound<'_, Robot>,
     recording: &Bound<'_, PyAny>,
     fit: impl FnOnce(&ModelSpec, &ctr_formats::Recording) -> Result<Diagnosis, DiagnoseError> + Send,
 ) -> PyResult<Report> {
-    let rec = recording_arg(py, recording, robot)?;
-    let model = ModelSpec::from_spec(robot.spec());
-    let rec_ref: &ctr_formats::Recording = &rec;
+    let rec_obj = recording_arg(py, recording, robot.get())?;
+    let rec = &rec_obj.get().rec;
+    let model = ModelSpec::from_spec(robot.get().spec());
     let d = py
-        .detach(|| fit(&model, rec_ref))
+        .detach(|| fit(&model, rec))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
-    Report::new(py, &d, robot, &rec)
+    Report::new(py, &d, robot, rec_obj)
 }
 
 /// Diagnoses a robot's model against a recording; see `_ctr.pyi`.
@@ -391,7 +415,6 @@ pub fn diagnose(
     effects: Option<&Bound<'_, PyAny>>,
     threads: Option<i64>,
 ) -> PyResult<Report> {
-    let robot = robot.get();
     let options = Options {
         holdout: holdout_arg(holdout)?,
         candidates: match effects {
@@ -418,7 +441,6 @@ pub fn calibrate(
     holdout: Option<&Bound<'_, PyAny>>,
     threads: Option<i64>,
 ) -> PyResult<Report> {
-    let robot = robot.get();
     let fit = effects_arg("fit", fit)?;
     if fit.is_empty() {
         return Err(errors::input(
@@ -497,14 +519,14 @@ pub fn evaluate<'py>(
             )));
         }
     }
-    let rec = recording_arg(py, recording, first)?;
+    let rec_obj = recording_arg(py, recording, first)?;
+    let rec = &rec_obj.get().rec;
     let models: Vec<ModelSpec> = list
         .iter()
         .map(|r| ModelSpec::from_spec(r.get().spec()))
         .collect();
-    let rec_ref: &ctr_formats::Recording = &rec;
     let table = py
-        .detach(|| ctr_diagnosis::evaluate(&models, rec_ref))
+        .detach(|| ctr_diagnosis::evaluate(&models, rec))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
     let out = PyList::empty(py);
     for r in table {

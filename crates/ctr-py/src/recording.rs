@@ -1,4 +1,4 @@
-//! `ctr_py.read_recording` and `ctr_py.Recording`: a recording (`shared/spec/formats.md`)
+//! `ctr_py.read_recording` and `ctr_py.Recording`: a recording (`docs/formats.md`)
 //! read by `ctr-analysis`'s reader, its columns as numpy arrays.
 //!
 //! The file is read exactly as `ctr-cli diagnose --recording` reads it (the robot gives

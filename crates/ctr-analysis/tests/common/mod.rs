@@ -8,7 +8,7 @@ use ctr_formats::{FkResult, Recording, RobotSpec};
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// The project's copy of `shared/data` (`tests/data/shared`; override with
+/// The project's copy of the shared reference data (`tests/data/shared`; override with
 /// `CTR_SHARED_DATA`).
 pub fn shared() -> PathBuf {
     std::env::var_os("CTR_SHARED_DATA").map_or_else(
@@ -17,12 +17,12 @@ pub fn shared() -> PathBuf {
     )
 }
 
-/// A robot of `shared/data/robots`.
+/// A robot of `tests/data/shared/robots`.
 pub fn robot(name: &str) -> RobotSpec {
     RobotSpec::from_path(&shared().join(format!("robots/{name}.toml"))).unwrap()
 }
 
-/// A recording of `shared/data/recordings`, the robot its truth file names, and the
+/// A recording of `tests/data/shared/recordings`, the robot its truth file names, and the
 /// truth file.
 pub fn recording(id: &str) -> (RobotSpec, Recording, Value) {
     let dir = shared().join("recordings");
@@ -39,7 +39,7 @@ pub fn recording(id: &str) -> (RobotSpec, Recording, Value) {
     (spec, rec, truth)
 }
 
-/// The stable increment ranges of `shared/data/manifest.json` (`valid_ranges`), mm; all
+/// The stable increment ranges of `tests/data/shared/manifest.json` (`valid_ranges`), mm; all
 /// robots take every rotation in [-180, 180] degrees.
 pub fn stable_increments(name: &str) -> Vec<[f64; 2]> {
     match name {

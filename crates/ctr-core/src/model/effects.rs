@@ -1,6 +1,6 @@
 //! Effects beyond the base mechanics, as switchable parameters in physical units.
 //!
-//! Names follow the contract's vocabulary (`shared/spec/formats.md`):
+//! Names follow the contract's vocabulary (`docs/formats.md`):
 //!
 //! - `joint_offset`: an actuator's zero differs from the nominal one; the actual joints
 //!   are `commanded + offset` (feeds mm, rotations rad).

@@ -1,7 +1,7 @@
 //! Validated robot parameters: the tubes, outermost first.
 //!
 //! A [`Robot`] is built from one [`TubeParams`] per tube, which mirror the robot TOML of
-//! `shared/spec/formats.md` field for field (mm, MPa, kg/m^3). Construction checks
+//! `docs/formats.md` field for field (mm, MPa, kg/m^3). Construction checks
 //! every field and returns a [`RobotError`] naming the tube and the field; a `Robot`
 //! therefore never holds a negative diameter, tubes that do not nest or a curved part
 //! longer than its tube.

@@ -264,11 +264,11 @@ EffectId = Literal[
     "latency",
     "sensor_offset",
 ]
-"""The contract's effect ids (``shared/spec/formats.md``)."""
+"""The contract's effect ids (``docs/formats.md``)."""
 
 class Recording:
     """A recording of the real robot: commanded joints and measured tips, row by row, in
-    runs (``shared/spec/formats.md``), read by :func:`read_recording`.
+    runs (``docs/formats.md``), read by :func:`read_recording`.
 
     Columns come out as new float64 numpy arrays (``m`` rows, ``n`` tubes).
     ``len(recording)`` is ``m``. Immutable, comparable with ``==`` and picklable: it
@@ -452,7 +452,7 @@ class RunErrors(TypedDict):
 
 class Report:
     """The mismatch report of :func:`diagnose` or :func:`calibrate`: the JSON report
-    ``ctr-cli diagnose --report`` writes (``shared/spec/formats.md``: ``baseline``,
+    ``ctr-cli diagnose --report`` writes (``docs/formats.md``: ``baseline``,
     ``findings``, ``final``, ``unexplained``; with this project's ``noise``,
     ``split``, ``located``, ``tried``, ``failed_rows``), the summary the CLI prints and
     the fitted model.
@@ -546,7 +546,22 @@ class Report:
         left (``method``, ``terms``, ``rms_mm``, ``heldout_rms_mm``, ``dominant``), or
         ``None`` when the recording is explained. Not physics."""
     def __eq__(self, other: object) -> bool: ...
-    def __reduce__(self) -> tuple[object, tuple[str, str, Robot, str]]: ...
+    def to_html(self) -> str:
+        """The report as one self-contained HTML page: the verdict, the findings with
+        their parameters and 95 % intervals, the error by run, the residual against
+        the feature that located it, each run's measured and modelled tip paths, what
+        is left and where, the suggested next run and the fitted robot file; inline
+        SVG and CSS, nothing fetched, so it opens offline. The same bytes as
+        ``ctr-cli diagnose --html`` for the same robot, recording and options (the
+        report keeps the robot and the recording it was made from, and pickles with
+        them). Strings from files are HTML-escaped.
+
+        >>> open("report.html", "w", encoding="utf-8").write(report.to_html())  # doctest: +SKIP
+        """
+    def __eq__(self, other: object) -> bool: ...
+    def __reduce__(
+        self,
+    ) -> tuple[object, tuple[str, str, Robot, str, Robot, Recording]]: ...
 
 RecordingArg = Union[Recording, PathArg]
 
