@@ -115,14 +115,16 @@ def test_fk_equals_cli_to_the_last_bit(cli, tmp_path, robot_path, model):
 
 
 def snap_rows():
-    """A robot that snaps (long transmissions) and random joint rows of which some do
-    not converge, with the index of the first such row."""
+    """A robot that snaps (three tubes, long transmissions) and random joint rows of
+    which some do not converge, with the index of the first such row."""
     robot = ctr_py.Robot.from_toml(SNAP / "robot.toml")
     rng = np.random.default_rng(0)
-    m = 300
-    s1 = rng.uniform(20.0, 120.0, m)
-    s2 = s1 + rng.uniform(20.0, 120.0, m)
-    q = np.stack([s1, rng.uniform(-180, 180, m), s2, rng.uniform(-180, 180, m)], axis=1)
+    m = 600
+    s1 = rng.uniform(100.0, 150.0, m)
+    s2 = s1 + rng.uniform(1.0, 30.0, m)
+    s3 = s2 + rng.uniform(5.0, 40.0, m)
+    turn = lambda: rng.uniform(-180, 180, m)  # noqa: E731
+    q = np.stack([s1, turn(), s2, turn(), s3, turn()], axis=1)
     status = robot.fk(q, on_error="mark")[2]
     failed = np.flatnonzero(status != "converged")
     if len(failed) == 0:

@@ -11,7 +11,7 @@
 //! makes even those last bits reproducible.
 
 use crate::ik::{Ik, IkResult};
-use crate::model::{ModelError, RowModel};
+use crate::model::{ModelError, RowModel, RowSolver};
 use ctr_core::SolveError;
 use ctr_formats::parallel::{for_each_chunk, Progress};
 use ctr_formats::{FkResult, IkTarget};
@@ -57,47 +57,125 @@ pub enum Rows<'a> {
     },
 }
 
+/// Two solutions of one row farther apart than this at the tip, mm, are on two branches
+/// of equilibria (the same root found twice differs by the Newton tolerance, ~1e-9 mm).
+pub const BRANCH_TOLERANCE_MM: f64 = 1e-6;
+
+/// Solves one row with `solver`, warm-started from its memory.
+fn solve_row(
+    solver: &mut RowSolver<'_>,
+    rows: Rows<'_>,
+    row: usize,
+    width: usize,
+) -> Result<FkResult, SolveError> {
+    let r = row * width..(row + 1) * width;
+    match rows {
+        Rows::Commanded(j) => solver.fk(&j[r]),
+        Rows::Actual {
+            actual,
+            commanded,
+            t_s,
+        } => solver.fk_timed(
+            &commanded[r.clone()],
+            &actual[r],
+            t_s.map_or(f64::NAN, |t| t[row]),
+            [0.0; 3],
+        ),
+    }
+}
+
+/// True when two solutions of one row lie on one branch (or either failed).
+fn same_branch(a: &Result<FkResult, SolveError>, b: &Result<FkResult, SolveError>) -> bool {
+    match (a, b) {
+        (Ok(a), Ok(b)) => {
+            let d2: f64 = (0..3)
+                .map(|k| (a.position[k] - b.position[k]).powi(2))
+                .sum();
+            d2.sqrt() <= BRANCH_TOLERANCE_MM
+        }
+        _ => true,
+    }
+}
+
 /// Solves the rows `range` of `rows` in order, each warm-started from the rows before
 /// it in its chunk of `chunk_rows` consecutive rows (boundaries at multiples of
 /// `chunk_rows`; at least 1), handing each result to `each` (which returns `false` to
-/// stop). Every forward-kinematics batch solves its rows this way (the CLI's file job,
-/// `ctr_py`, [`batch_fk`]), so the results depend on the chunk size and never on how
-/// the rows are shared out between threads.
+/// stop), and returns the solver as the last row left it. Every forward-kinematics
+/// batch solves its rows this way (the CLI's file job, `ctr_py`, [`batch_fk`]), so the
+/// results depend on the chunk size and never on how the rows are shared out between
+/// threads.
+///
+/// A chunk starts from a fresh solver, unless the robot would be on another branch of
+/// equilibria there (a snapping robot between its folds): the first row is also solved
+/// warm from the chunk before (`after`, the solver the previous range ended with, for
+/// the range's first chunk), and where the two differ by more than
+/// [`BRANCH_TOLERANCE_MM`] the warm one is kept, with its memory, so that a trajectory
+/// follows one branch as the robot does. (With `chunk_rows` 1 every row is cold.) The
+/// caller that handed a range out without `after` checks it with [`branch_changed`].
 ///
 /// # Panics
 /// If a row is not `2 n` values or `range` is beyond the rows.
-pub fn solve_rows(
-    model: &RowModel,
+pub fn solve_rows<'m>(
+    model: &'m RowModel,
     rows: Rows<'_>,
     range: Range<usize>,
     chunk_rows: usize,
+    after: Option<&RowSolver<'m>>,
     mut each: impl FnMut(usize, Result<FkResult, SolveError>) -> bool,
-) {
+) -> RowSolver<'m> {
     let width = 2 * model.robot().n_tubes();
     let chunk = chunk_rows.max(1);
     let mut solver = model.solver();
     for row in range.clone() {
-        if row % chunk == 0 && row != range.start {
+        let tip = if row % chunk == 0 || row == range.start {
+            let before = if row == range.start {
+                after.cloned()
+            } else {
+                Some(solver.clone())
+            };
             solver = model.solver();
-        }
-        let r = row * width..(row + 1) * width;
-        let tip = match rows {
-            Rows::Commanded(j) => solver.fk(&j[r]),
-            Rows::Actual {
-                actual,
-                commanded,
-                t_s,
-            } => solver.fk_timed(
-                &commanded[r.clone()],
-                &actual[r],
-                t_s.map_or(f64::NAN, |t| t[row]),
-                [0.0; 3],
-            ),
+            let cold = solve_row(&mut solver, rows, row, width);
+            match before.filter(|_| chunk > 1) {
+                Some(mut warm) => {
+                    let tip = solve_row(&mut warm, rows, row, width);
+                    if same_branch(&cold, &tip) {
+                        cold
+                    } else {
+                        solver = warm;
+                        tip
+                    }
+                }
+                None => cold,
+            }
+        } else {
+            solve_row(&mut solver, rows, row, width)
         };
         if !each(row, tip) {
-            return;
+            break;
         }
     }
+    solver
+}
+
+/// For the caller of [`solve_rows`] without `after`: true when the range's first row,
+/// solved from `after` (the solver the range before ended with), lies on another branch
+/// than `first` (its result from a fresh start): the range must be solved again with
+/// `after`.
+pub fn branch_changed(
+    model: &RowModel,
+    rows: Rows<'_>,
+    row: usize,
+    chunk_rows: usize,
+    after: &RowSolver<'_>,
+    first: &Result<FkResult, SolveError>,
+) -> bool {
+    // (a first row that failed to solve is no branch to compare)
+    if chunk_rows <= 1 {
+        return false;
+    }
+    let width = 2 * model.robot().n_tubes();
+    let warm = solve_row(&mut after.clone(), rows, row, width);
+    !same_branch(&warm, first)
 }
 
 /// Solves every row of `joints` (row after row, `2 n` values each in file order
@@ -154,6 +232,7 @@ pub fn batch_fk(
         None => Rows::Commanded(joints),
     };
     let mut out = Vec::with_capacity(n_rows);
+    let mut last: Option<RowSolver<'_>> = None;
     for_each_chunk(
         n_rows,
         options.chunk_rows,
@@ -162,13 +241,37 @@ pub fn batch_fk(
         || (),
         |(), range| {
             let mut results = Vec::with_capacity(range.len());
-            solve_rows(model, rows, range, options.chunk_rows, |_, r| {
+            let end = solve_rows(model, rows, range, options.chunk_rows, None, |_, r| {
                 results.push(r);
                 true
             });
-            results
+            (results, end)
         },
-        |_, results| {
+        |range, (mut results, mut end)| {
+            if let Some(after) = &last {
+                if branch_changed(
+                    model,
+                    rows,
+                    range.start,
+                    options.chunk_rows,
+                    after,
+                    &results[0],
+                ) {
+                    results.clear();
+                    end = solve_rows(
+                        model,
+                        rows,
+                        range,
+                        options.chunk_rows,
+                        Some(after),
+                        |_, r| {
+                            results.push(r);
+                            true
+                        },
+                    );
+                }
+            }
+            last = Some(end);
             out.extend(results);
             true
         },

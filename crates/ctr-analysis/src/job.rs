@@ -9,14 +9,15 @@
 //! output into place. Any error before the rename leaves an existing output untouched
 //! (the temporary file is removed); standard output is written only at the end.
 
-use crate::batch::{batch_ik, solve_rows, IkBatchOptions, Rows, WARM_CHUNK_ROWS};
+use crate::batch::{batch_ik, branch_changed, solve_rows, IkBatchOptions, Rows, WARM_CHUNK_ROWS};
 use crate::ik::{Ik, IkOptions, IkStatus};
-use crate::model::{ModelError, ModelSpec, RowModel, EMPIRICAL};
+use crate::model::{ModelError, ModelSpec, RowModel, RowSolver, EMPIRICAL};
 use ctr_core::{Model, SolveError, Status};
 use ctr_formats::parallel::{for_each_chunk, Progress};
-use ctr_formats::{ik_output_columns, tip_header, AtomicFile, JointTable, RobotSpec, TargetTable};
-use ctr_formats::{write_header, write_ik_row, write_tip_row, Carried, IkRow};
+use ctr_formats::{ik_output_columns, tip_header_for, AtomicFile, JointTable, RobotSpec};
+use ctr_formats::{write_header, write_ik_row, write_tip_row_for, Carried, IkRow, TargetTable};
 use ctr_formats::{Error, ErrorKind, Location};
+use ctr_formats::{FkResult, TipColumns};
 use std::io::{Read, Write};
 use std::path::PathBuf;
 
@@ -51,7 +52,7 @@ pub enum OnError {
 }
 
 /// A forward-kinematics job.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct FkJob {
     /// The robot TOML.
     pub robot: Input,
@@ -65,6 +66,22 @@ pub struct FkJob {
     pub on_error: OnError,
     /// Worker threads, 0 = all cores (the output does not depend on it).
     pub threads: usize,
+    /// Append the `stability_margin` column.
+    pub margin: bool,
+    /// Report the runs of rows whose stability margin is below this
+    /// ([`FkSummary::low_margin`]).
+    pub warn_margin: Option<f64>,
+}
+
+/// A run of consecutive rows whose stability margin is below the warning margin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LowMargin {
+    /// 1-based lines of the run's first and last row in the joint file.
+    pub lines: (usize, usize),
+    /// Rows in the run.
+    pub rows: usize,
+    /// The smallest margin in the run, and its line.
+    pub min: (f64, usize),
 }
 
 /// A row whose solve did not converge.
@@ -89,6 +106,8 @@ pub struct FkSummary {
     pub written: usize,
     /// Rows that did not converge (skipped or marked), in input order.
     pub failures: Vec<RowFailure>,
+    /// Runs of rows below [`FkJob::warn_margin`], in input order.
+    pub low_margin: Vec<LowMargin>,
 }
 
 fn read_input(input: &Input) -> Result<(String, Vec<u8>), Error> {
@@ -141,47 +160,57 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
     };
     let mark = job.on_error == OnError::Mark;
     let skip = job.on_error == OnError::Skip;
-    let header = tip_header(table.header(), mark)
+    let columns = TipColumns {
+        status: mark,
+        margin: job.margin,
+    };
+    let header = tip_header_for(table.header(), columns)
         .map_err(|kind| Error::new(Location::line(table.file(), 1), kind))?;
     let mut sink = Sink::open(&job.output)?;
     let mut head = Vec::new();
     write_header(&mut head, &header);
     sink.write(&head)?;
 
-    /// One chunk's rows, formatted.
-    struct Chunk {
+    /// One chunk's rows, formatted, and the solver they left.
+    struct Chunk<'m> {
         text: Vec<u8>,
         written: usize,
         failures: Vec<RowFailure>,
         row_error: Option<(usize, SolveError)>,
+        /// each row's margin, in order
+        margins: Vec<f64>,
+        first: Option<FkResult>,
+        end: Option<RowSolver<'m>>,
     }
-    let mut failures = Vec::new();
-    let mut written = 0;
-    let mut failed: Option<Error> = None;
-    // a worker takes UNIT_CHUNKS warm-start chunks at a time (fewer hand-overs), each
-    // solved from a fresh solver as batch_fk does: the same numbers
-    for_each_chunk(
-        table.len(),
-        WARM_CHUNK_ROWS * UNIT_CHUNKS,
-        job.threads,
-        progress,
-        || (),
-        |(), rows| {
+    let joints = match &actual {
+        Some((a, t_s)) => Rows::Actual {
+            actual: a,
+            commanded: table.all_joints(),
+            t_s: t_s.as_deref(),
+        },
+        None => Rows::Commanded(table.all_joints()),
+    };
+    // one lifetime for the solvers a chunk starts after and ends with: the model's
+    fn tie<'m, F>(_: &'m RowModel, f: F) -> F
+    where
+        F: Fn(std::ops::Range<usize>, Option<&RowSolver<'m>>) -> Chunk<'m>,
+    {
+        f
+    }
+    let solve = tie(
+        &fkm,
+        |rows: std::ops::Range<usize>, after: Option<&RowSolver<'_>>| {
             let mut chunk = Chunk {
                 text: Vec::with_capacity(rows.len() * (table.header().len() * 12 + 180)),
                 written: 0,
                 failures: Vec::new(),
                 row_error: None,
+                margins: Vec::with_capacity(rows.len()),
+                first: None,
+                end: None,
             };
-            let joints = match &actual {
-                Some((a, t_s)) => Rows::Actual {
-                    actual: a,
-                    commanded: table.all_joints(),
-                    t_s: t_s.as_deref(),
-                },
-                None => Rows::Commanded(table.all_joints()),
-            };
-            solve_rows(&fkm, joints, rows, WARM_CHUNK_ROWS, |row, solved| {
+            let start = rows.start;
+            let end = solve_rows(&fkm, joints, rows, WARM_CHUNK_ROWS, after, |row, solved| {
                 let fk = match solved {
                     Ok(fk) => fk,
                     Err(e) => {
@@ -189,6 +218,16 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                         return false;
                     }
                 };
+                if row == start {
+                    chunk.first = Some(fk);
+                }
+                // a row that did not converge has no margin to warn of
+                let converged = fk.status == Status::Converged;
+                chunk.margins.push(if converged {
+                    fk.stability_margin
+                } else {
+                    f64::NAN
+                });
                 if fk.status != Status::Converged {
                     chunk.failures.push(RowFailure {
                         line: table.line(row),
@@ -203,19 +242,46 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                     Some(line) => Carried::Line(line),
                     None => Carried::Fields(table.fields(row)),
                 };
-                write_tip_row(&mut chunk.text, carried, &fk, mark);
+                write_tip_row_for(&mut chunk.text, carried, &fk, columns);
                 chunk.written += 1;
                 true
             });
+            chunk.end = Some(end);
             chunk
         },
-        |_, chunk| {
+    );
+    let mut failures = Vec::new();
+    let mut written = 0;
+    let mut failed: Option<Error> = None;
+    let mut low = LowRuns::new(job.warn_margin);
+    let mut last: Option<RowSolver<'_>> = None;
+    // a worker takes UNIT_CHUNKS warm-start chunks at a time (fewer hand-overs), each
+    // solved as batch_fk does: the same numbers (a unit whose first row lies on another
+    // branch from where the unit before ended is solved again after it, see solve_rows)
+    for_each_chunk(
+        table.len(),
+        WARM_CHUNK_ROWS * UNIT_CHUNKS,
+        job.threads,
+        progress,
+        || (),
+        |(), rows| solve(rows, None),
+        |rows, mut chunk| {
+            if let (Some(after), Some(first)) = (&last, &chunk.first) {
+                let first = Ok(*first);
+                if branch_changed(&fkm, joints, rows.start, WARM_CHUNK_ROWS, after, &first) {
+                    chunk = solve(rows.clone(), Some(after));
+                }
+            }
+            last = chunk.end.take();
             if let Some((row, e)) = chunk.row_error {
                 failed = Some(Error::new(
                     Location::line(table.file(), table.line(row)),
                     fkm.row_error(e),
                 ));
                 return false;
+            }
+            for (k, m) in chunk.margins.iter().enumerate() {
+                low.row(rows.start + k, table.line(rows.start + k), *m);
             }
             failures.extend(chunk.failures);
             if job.on_error == OnError::Fail && !failures.is_empty() {
@@ -248,7 +314,54 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
         rows: table.len(),
         written,
         failures,
+        low_margin: low.finish(),
     })
+}
+
+/// Gathers the runs of consecutive rows whose margin is below a warning margin.
+struct LowRuns {
+    below: Option<f64>,
+    runs: Vec<LowMargin>,
+    /// the row after the open run's last
+    next: usize,
+}
+
+impl LowRuns {
+    fn new(below: Option<f64>) -> Self {
+        LowRuns {
+            below,
+            runs: Vec::new(),
+            next: usize::MAX,
+        }
+    }
+
+    /// Row `row` (at `line`) has margin `m`; rows come in order.
+    fn row(&mut self, row: usize, line: usize, m: f64) {
+        let Some(below) = self.below else { return };
+        // a NaN margin (a row that did not solve) is not a low one
+        if m.is_nan() || m >= below {
+            return;
+        }
+        match self.runs.last_mut() {
+            Some(run) if self.next == row => {
+                run.lines.1 = line;
+                run.rows += 1;
+                if m < run.min.0 {
+                    run.min = (m, line);
+                }
+            }
+            _ => self.runs.push(LowMargin {
+                lines: (line, line),
+                rows: 1,
+                min: (m, line),
+            }),
+        }
+        self.next = row + 1;
+    }
+
+    fn finish(self) -> Vec<LowMargin> {
+        self.runs
+    }
 }
 
 /// Reads and validates the robot file.

@@ -231,6 +231,8 @@ fn job_policies_for_rows_that_do_not_converge() {
         model: None,
         on_error: OnError::Fail,
         threads: 2,
+        margin: false,
+        warn_margin: None,
     };
     let e = run_fk(&job, &()).unwrap_err();
     assert!(e.is_solver_failure());

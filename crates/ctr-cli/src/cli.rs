@@ -421,7 +421,21 @@ pub struct FkArgs {
     /// Worker threads (default: all cores); the output does not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+
+    /// Append a stability_margin column: the elastic stability margin of each row's
+    /// solution (1 far from any snap, 0 at one, negative on an unstable branch).
+    #[arg(long)]
+    pub margin: bool,
+
+    /// Warn once per run of consecutive rows whose stability margin is below X (with the
+    /// run's lines and its smallest margin); 0 turns the warnings off.
+    #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN)]
+    pub warn_margin: f64,
 }
+
+/// `ctr-cli fk --warn-margin`'s default: a margin this small is within a few degrees of
+/// a snap on the seed's robot with long transmissions (README, "Snap-through").
+pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
 
 /// Options of `ctr-cli ik`.
 #[derive(Debug, clap::Args)]

@@ -18,7 +18,7 @@ mod progress;
 use clap::Parser;
 use cli::{Cli, Command, FkArgs, IkArgs, OnErrorArg};
 use ctr_analysis::ik::IkOptions;
-use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, OnError, Output};
+use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, LowMargin, OnError, Output};
 use ctr_core::Model;
 use ctr_formats::status_name;
 use std::path::{Path, PathBuf};
@@ -196,6 +196,8 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
             OnErrorArg::Mark => OnError::Mark,
         },
         threads: args.threads.map_or(0, usize::from),
+        margin: args.margin,
+        warn_margin: (args.warn_margin > 0.0).then_some(args.warn_margin),
     };
     let summary = run_fk(&job, &progress::Bar::default()).map_err(|e| {
         if e.is_solver_failure() {
@@ -229,5 +231,41 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
             summary.rows
         );
     }
+    for run in summary.low_margin.iter().take(MAX_WARNINGS) {
+        eprintln!(
+            "warning: {}",
+            low_margin_words(&summary.joints_file, run, args.warn_margin)
+        );
+    }
+    if summary.low_margin.len() > MAX_WARNINGS {
+        eprintln!(
+            "warning: {}: {} more runs of rows with a stability margin below {}",
+            summary.joints_file,
+            summary.low_margin.len() - MAX_WARNINGS,
+            args.warn_margin
+        );
+    }
     Ok(())
+}
+
+/// One warning for a run of rows below the warning margin.
+fn low_margin_words(file: &str, run: &LowMargin, below: f64) -> String {
+    let (first, last) = run.lines;
+    let lines = if first == last {
+        format!("{file}:{first}")
+    } else {
+        format!("{file}:{first}-{last}")
+    };
+    let what = if run.min.0 < 0.0 {
+        "on an unstable branch: the robot would snap"
+    } else {
+        "close to a snap"
+    };
+    format!(
+        "{lines}: stability margin below {below} on {} row{} ({what}; smallest {:.4} at line {})",
+        run.rows,
+        if run.rows == 1 { "" } else { "s" },
+        run.min.0,
+        run.min.1
+    )
 }

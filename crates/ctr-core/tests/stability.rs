@@ -5,8 +5,9 @@ use ctr_suite::*;
 
 /// The seed's robot with transmissions 100 mm longer (tests/data/shared/robots/liu2023.toml
 /// notes it snaps when the curved parts overlap far): at opposed curvatures the margin
-/// falls linearly to zero and changes sign where the symmetric solution loses
-/// stability; just off the symmetric angle, a warm-started feed jumps there (a snap).
+/// falls linearly to zero where the symmetric solution loses stability (past it the
+/// solver takes a stable twisted equilibrium, never the unstable symmetric one); just
+/// off the symmetric angle, a warm-started rotation jumps there (a snap).
 #[test]
 fn margin_vanishes_at_the_snap_of_a_long_transmission_pair() {
     let t = |od, id, len, cl, r, e| TubeParams {
@@ -18,7 +19,7 @@ fn margin_vanishes_at_the_snap_of_a_long_transmission_pair() {
         t(4.5, 3.3, 274.0, 114.0, 98.5, 300.0),
     ])
     .unwrap();
-    let margin = |s1: f64, rel: f64| {
+    let solve = |s1: f64, rel: f64| {
         Solver::default()
             .solve(
                 &robot,
@@ -29,20 +30,31 @@ fn margin_vanishes_at_the_snap_of_a_long_transmission_pair() {
                 .cold(),
             )
             .unwrap()
-            .stability_margin
     };
-    // find the zero crossing by bisection
+    let margin = |s1: f64, rel: f64| solve(s1, rel).stability_margin;
+    // the opposed configuration, untwisted, is an equilibrium at every feed; past the
+    // crossing it is unstable and a cold solve takes a stable twisted one instead
+    let symmetric = |s1: f64| {
+        let sol = solve(s1, 0.0);
+        sol.base_twist_per_mm[0].abs() < 1e-9 && sol.stability_margin > 0.0
+    };
+    // find the crossing by bisection
     let (mut lo, mut hi) = (20.0, 40.0);
-    assert!(margin(lo, 0.0) > 0.3 && margin(hi, 0.0) < -0.1);
+    assert!(margin(lo, 0.0) > 0.3 && symmetric(lo) && !symmetric(hi));
+    assert!(
+        margin(hi, 0.0) > 0.0,
+        "a stable twisted equilibrium past it"
+    );
     for _ in 0..40 {
         let mid = 0.5 * (lo + hi);
-        if margin(mid, 0.0) > 0.0 {
+        if symmetric(mid) {
             lo = mid;
         } else {
             hi = mid;
         }
     }
     eprintln!("margin crosses zero at s1 = {lo:.4} mm");
+    assert!(margin(lo, 0.0).abs() < 1e-3);
     assert!(margin(lo - 2.0, 0.0) > 0.02 && margin(lo - 2.0, 0.0) < 0.1);
     // rotating through the opposed configuration: smooth before the crossing, a snap
     // (a jump of the warm-started solution) past it

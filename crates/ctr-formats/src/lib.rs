@@ -198,6 +198,6 @@ pub use targets::{
     ORIENTATION_COLUMNS, ORIENTATION_TOLERANCE_DEG, QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
 };
 pub use tips::{
-    format_float, tip_header, write_header, write_tip_row, Carried, TipWriter, STATUS_COLUMNS,
-    TIP_COLUMNS,
+    format_float, tip_header, tip_header_for, write_header, write_tip_row, write_tip_row_for,
+    Carried, TipColumns, TipWriter, MARGIN_COLUMN, STATUS_COLUMNS, TIP_COLUMNS,
 };

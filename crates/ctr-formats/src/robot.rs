@@ -61,6 +61,9 @@ pub struct FkResult {
     pub residual_per_mm: f64,
     /// Newton iterations used.
     pub iterations: u32,
+    /// The core's elastic stability margin (`ctr_core::Solution::stability_margin`): 1
+    /// far from any snap, 0 at one, negative on an unstable branch.
+    pub stability_margin: f64,
 }
 
 impl FkResult {
@@ -73,6 +76,7 @@ impl FkResult {
             status: sol.status,
             residual_per_mm: sol.residual_per_mm,
             iterations: sol.iterations,
+            stability_margin: sol.stability_margin,
         }
     }
 }

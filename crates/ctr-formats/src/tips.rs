@@ -11,19 +11,36 @@ pub const TIP_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "q
 /// The columns appended after the pose when rows are marked with their solve status.
 pub const STATUS_COLUMNS: [&str; 2] = ["status", "residual_per_mm"];
 
-/// The output header: `input` (as found) then [`TIP_COLUMNS`] (and [`STATUS_COLUMNS`]
-/// with `with_status`). Refuses an input column whose name (trimmed) the output adds.
+/// The column `ctr-cli fk --margin` appends last: the elastic stability margin.
+pub const MARGIN_COLUMN: &str = "stability_margin";
+
+/// Which columns a tip file has after the pose.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TipColumns {
+    /// [`STATUS_COLUMNS`]: the solve's status and residual.
+    pub status: bool,
+    /// [`MARGIN_COLUMN`], after the status columns.
+    pub margin: bool,
+}
+
+/// The output header: `input` (as found) then [`TIP_COLUMNS`] and the columns `extra`
+/// asks for. Refuses an input column whose name (trimmed) the output adds.
 ///
 /// ```
-/// let h = ctr_formats::tip_header(&["label".into(), "s1_mm".into()], false).unwrap();
-/// assert_eq!(h.join(","), "label,s1_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz");
-/// assert!(ctr_formats::tip_header(&["z_mm".into()], false).is_err());
+/// use ctr_formats::{tip_header_for, TipColumns};
+/// let h = tip_header_for(&["s1_mm".into()], TipColumns { status: false, margin: true }).unwrap();
+/// assert_eq!(h.join(","), "s1_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz,stability_margin");
 /// ```
-pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, ErrorKind> {
+pub fn tip_header_for(input: &[String], extra: TipColumns) -> Result<Vec<String>, ErrorKind> {
     let added: Vec<&str> = TIP_COLUMNS
         .iter()
-        .chain(if with_status {
+        .chain(if extra.status {
             &STATUS_COLUMNS[..]
+        } else {
+            &[]
+        })
+        .chain(if extra.margin {
+            &[MARGIN_COLUMN][..]
         } else {
             &[]
         })
@@ -39,6 +56,24 @@ pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, Er
         .cloned()
         .chain(added.iter().map(|s| (*s).to_owned()))
         .collect())
+}
+
+/// The output header: `input` (as found) then [`TIP_COLUMNS`] (and [`STATUS_COLUMNS`]
+/// with `with_status`). Refuses an input column whose name (trimmed) the output adds.
+///
+/// ```
+/// let h = ctr_formats::tip_header(&["label".into(), "s1_mm".into()], false).unwrap();
+/// assert_eq!(h.join(","), "label,s1_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz");
+/// assert!(ctr_formats::tip_header(&["z_mm".into()], false).is_err());
+/// ```
+pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, ErrorKind> {
+    tip_header_for(
+        input,
+        TipColumns {
+            status: with_status,
+            margin: false,
+        },
+    )
 }
 
 /// Formats a float with Rust's shortest round-trip representation: parsing the text
@@ -95,6 +130,22 @@ pub fn write_tip_row<'a, I: Iterator<Item = &'a str>>(
     fk: &FkResult,
     with_status: bool,
 ) {
+    let extra = TipColumns {
+        status: with_status,
+        margin: false,
+    };
+    write_tip_row_for(out, input, fk, extra);
+}
+
+/// Appends one tip row to `out`: the input's raw fields, then the pose and the columns
+/// `extra` asks for (as [`tip_header_for`] names them).
+pub fn write_tip_row_for<'a, I: Iterator<Item = &'a str>>(
+    out: &mut Vec<u8>,
+    input: Carried<'a, I>,
+    fk: &FkResult,
+    extra: TipColumns,
+) {
+    let with_status = extra.status;
     write_carried(out, input);
     for (k, v) in fk.position.iter().chain(fk.quaternion.iter()).enumerate() {
         if k > 0 {
@@ -107,6 +158,10 @@ pub fn write_tip_row<'a, I: Iterator<Item = &'a str>>(
         out.extend_from_slice(status_name(fk.status).as_bytes());
         out.push(b',');
         write_float(out, fk.residual_per_mm);
+    }
+    if extra.margin {
+        out.push(b',');
+        write_float(out, fk.stability_margin);
     }
     out.push(b'\n');
 }

@@ -138,6 +138,35 @@ pub(crate) fn smallest_singular_value<T: Real, const N: usize>(jac: &[[T; N]; N]
     }
 }
 
+/// The unit right singular vector of the smallest singular value of the leading
+/// `m x m` block (m <= 3): the direction of the unknowns the block is softest in (at a
+/// fold, the mode along which the solution snaps).
+pub(crate) fn softest_direction<T: Real, const N: usize>(jac: &[[T; N]; N], m: usize) -> [T; N] {
+    let mut v = [T::zero(); N];
+    if m == 1 {
+        v[0] = T::one();
+        return v;
+    }
+    const PAD: f64 = 1e30;
+    let mut a = nalgebra::Matrix3::<T>::from_diagonal_element(c(PAD));
+    for i in 0..m.min(3) {
+        for k in 0..m.min(3) {
+            a[(i, k)] = jac[i][k];
+        }
+    }
+    let eig = nalgebra::SymmetricEigen::new(a.transpose() * a);
+    let mut best = 0;
+    for k in 1..3 {
+        if eig.eigenvalues[k] < eig.eigenvalues[best] {
+            best = k;
+        }
+    }
+    for (i, item) in v.iter_mut().enumerate().take(m.min(3)) {
+        *item = eig.eigenvectors[(i, best)];
+    }
+    v
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -157,5 +186,8 @@ mod tests {
         let m3: f64 =
             smallest_singular_value(&[[3.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 0.25]], 3);
         assert!((m3 - 0.25).abs() < 1e-12);
+        let v: [f64; 3] =
+            softest_direction(&[[3.0, 0.0, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 2.0]], 3);
+        assert!((v[1].abs() - 1.0).abs() < 1e-12 && v[0].abs() < 1e-12);
     }
 }

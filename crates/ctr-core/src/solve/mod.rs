@@ -21,6 +21,7 @@ pub mod loaded;
 pub mod newton;
 pub mod request;
 pub mod shooting;
+mod snap;
 
 pub use request::{Derivative, Request, SolveError, Unsupported};
 
@@ -173,6 +174,8 @@ struct WarmStart<T, const N: usize> {
     x: [[T; N]; 2],
     q: [Joints<T, N>; 2],
     count: usize,
+    /// the newest solution's stability margin
+    margin: T,
 }
 
 /// A forward-kinematics solver: settings plus warm-start memory, no heap.
@@ -218,6 +221,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 x: [[T::zero(); N]; 2],
                 q: [q; 2],
                 count: 0,
+                margin: T::one(),
             },
             loaded: None,
         }
@@ -352,7 +356,8 @@ impl<T: Real, const N: usize> Solver<T, N> {
         }
     }
 
-    fn remember(&mut self, q: &Joints<T, N>, base_twist: &[T; N]) {
+    fn remember(&mut self, q: &Joints<T, N>, base_twist: &[T; N], margin: T) {
+        self.warm.margin = margin;
         self.warm.x[1] = self.warm.x[0];
         self.warm.q[1] = self.warm.q[0];
         self.warm.x[0] = *base_twist;

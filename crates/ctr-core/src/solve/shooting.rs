@@ -13,6 +13,7 @@ use super::jacobian;
 use super::newton::{Evaluation, Newton, Policy, Shooting, Stop};
 use super::request::{Derivative, Request};
 use super::{Model, Solution, Solver, Status};
+
 use crate::integrate::pass::{run, Mechanics, Setup};
 use crate::integrate::pose::{NoPose, Traced};
 use crate::integrate::twist::{Inputs, TwistState};
@@ -32,9 +33,9 @@ const FRICTION_DIRECTIONS: usize = crate::MAX_TUBES - 1;
 
 /// Newton's residual of the torsion model: free-tip twists and their sensitivities from
 /// one pass with variations.
-struct Twist<'a, T: Real, const N: usize> {
-    setup: Setup<'a, T, N>,
-    inp: Inputs<T, T, N>,
+pub(super) struct Twist<'a, T: Real, const N: usize> {
+    pub setup: Setup<'a, T, N>,
+    pub inp: Inputs<T, T, N>,
 }
 
 impl<T: Real, const N: usize> Shooting<T, N> for Twist<'_, T, N> {
@@ -241,18 +242,53 @@ impl<T: Real, const N: usize> Solver<T, N> {
             registration,
             sol,
         );
-        if sol.status != Status::Converged && !cold {
-            // a warm start from far away can land in another basin: retry cold
+        // the branch the last solution was on ends at a fold, where a warm start fails
+        // or lands on the unstable side: the robot snaps to a stable branch (`snap`);
+        // a cold start that lands on an unstable equilibrium looks for a stable one
+        let unstable = |sol: &Solution<T, N>| {
+            sol.status == Status::Converged && sol.stability_margin < T::zero()
+        };
+        if sol.status != Status::Converged || unstable(sol) {
             let iterations = sol.iterations;
-            self.shoot(
-                setup,
-                inp,
-                [T::zero(); N],
-                true,
-                trace.as_deref_mut(),
-                registration,
-                sol,
-            );
+            // from the last equilibrium (where the branch was stable), else from where
+            // this solve ended: an unstable equilibrium's soft mode leads to the stable
+            // ones beside it
+            let was_stable = !cold && self.warm.margin > T::zero();
+            let mut snapped = was_stable
+                && self.stable_branch(
+                    setup,
+                    inp,
+                    self.warm.x[0],
+                    trace.as_deref_mut(),
+                    registration,
+                    sol,
+                );
+            if !snapped && sol.status != Status::Converged && !cold {
+                // a warm start from far away can land in another basin: retry cold
+                self.shoot(
+                    setup,
+                    inp,
+                    [T::zero(); N],
+                    true,
+                    trace.as_deref_mut(),
+                    registration,
+                    sol,
+                );
+            }
+            if !snapped && (sol.status != Status::Converged || unstable(sol)) {
+                let from = sol.base_twist_per_mm;
+                if from.iter().all(|v| v.is_finite()) {
+                    snapped = self.stable_branch(
+                        setup,
+                        inp,
+                        from,
+                        trace.as_deref_mut(),
+                        registration,
+                        sol,
+                    );
+                }
+            }
+            let _ = snapped;
             sol.iterations += iterations;
         }
         if sol.status != Status::Converged {
@@ -265,13 +301,13 @@ impl<T: Real, const N: usize> Solver<T, N> {
             sol.iterations += iterations;
         }
         if sol.status == Status::Converged {
-            self.remember(q, &sol.base_twist_per_mm);
+            self.remember(q, &sol.base_twist_per_mm, sol.stability_margin);
         }
     }
 
     /// Newton shooting on the base twist rates from `guess`, then the pose pass (see the
     /// module doc).
-    fn shoot(
+    pub(super) fn shoot(
         &self,
         setup: &Setup<'_, T, N>,
         inp: &Inputs<T, T, N>,

@@ -103,7 +103,19 @@ class Robot:
         on_error: Literal["fail"] = "fail",
         threads: int = 0,
         t_s: Optional[ArrayLike] = None,
+        margin: Literal[False] = False,
     ) -> Tuple[F64, F64]: ...
+    @overload
+    def fk(
+        self,
+        q: ArrayLike,
+        model: Optional[Model] = None,
+        *,
+        on_error: Literal["fail"] = "fail",
+        threads: int = 0,
+        t_s: Optional[ArrayLike] = None,
+        margin: Literal[True],
+    ) -> Tuple[F64, F64, Union[F64, float]]: ...
     @overload
     def fk(
         self,
@@ -113,7 +125,21 @@ class Robot:
         on_error: Literal["mark"],
         threads: int = 0,
         t_s: Optional[ArrayLike] = None,
+        margin: Literal[False] = False,
     ) -> Tuple[F64, F64, Union[npt.NDArray[np.str_], str], Union[F64, float]]: ...
+    @overload
+    def fk(
+        self,
+        q: ArrayLike,
+        model: Optional[Model] = None,
+        *,
+        on_error: Literal["mark"],
+        threads: int = 0,
+        t_s: Optional[ArrayLike] = None,
+        margin: Literal[True],
+    ) -> Tuple[
+        F64, F64, Union[npt.NDArray[np.str_], str], Union[F64, float], Union[F64, float]
+    ]: ...
     def fk(
         self,
         q: ArrayLike,
@@ -122,6 +148,7 @@ class Robot:
         on_error: Literal["fail", "mark"] = "fail",
         threads: int = 0,
         t_s: Optional[ArrayLike] = None,
+        margin: bool = False,
     ) -> tuple:
         """Tip forward kinematics: ``positions, quaternions = robot.fk(q)``.
 
@@ -141,6 +168,13 @@ class Robot:
         returns two more results, the status of every row (``"converged"``,
         ``"iteration_limit"`` or ``"diverged"``) and its free-tip torque residual in
         rad/mm. (The CLI's ``skip`` has no counterpart: mask with the status.)
+
+        ``margin=True`` returns one more result, last: every row's elastic stability
+        margin, shape ``(m,)`` (a float for one row), the CLI's ``--margin`` column: 1
+        for tubes that do not interact (above 1 where the coupling stiffens the twist),
+        falling to 0 at a snap, negative on an unstable branch (see the README,
+        "Snap-through"). Rows are solved as the CLI solves a file, so a batch along a
+        path follows the branch the robot follows.
 
         Effects: the robot file's ``[model.effects]`` are applied as ``ctr-cli fk``
         applies them (see the module notes), with the same numbers to the last bit.

@@ -236,7 +236,7 @@ impl Robot {
     }
 
     /// Tip forward kinematics of joint rows; see `_ctr.pyi`.
-    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = None, t_s = None))]
+    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = None, t_s = None, margin = false))]
     fn fk<'py>(
         &self,
         py: Python<'py>,
@@ -245,6 +245,7 @@ impl Robot {
         on_error: &str,
         threads: Option<&Bound<'py, PyAny>>,
         t_s: Option<&Bound<'py, PyAny>>,
+        margin: bool,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
         let fkm = self.row_model(model)?;
@@ -275,6 +276,12 @@ impl Robot {
             })?);
             let m = rows.rows;
             out.push(per_row(py, rows.batched, residuals, |py, v| {
+                arrays::array(py, v, &[m])
+            })?);
+        }
+        if margin {
+            let m = rows.rows;
+            out.push(per_row(py, rows.batched, tips.margins, |py, v| {
                 arrays::array(py, v, &[m])
             })?);
         }

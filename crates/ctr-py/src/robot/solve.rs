@@ -24,6 +24,8 @@ pub(super) struct Tips {
     pub statuses: Vec<&'static str>,
     /// per row with `mark`, else empty, rad/mm
     pub residuals: Vec<f64>,
+    /// per row: the stability margin
+    pub margins: Vec<f64>,
 }
 
 /// The IK's answers, flattened row after row.
@@ -78,6 +80,7 @@ impl Robot {
             quaternions: Vec::with_capacity(4 * m),
             statuses: Vec::with_capacity(if mark { m } else { 0 }),
             residuals: Vec::with_capacity(if mark { m } else { 0 }),
+            margins: Vec::with_capacity(m),
         };
         let mut failed = 0;
         let mut first_failure = None;
@@ -90,6 +93,7 @@ impl Robot {
             }
             out.positions.extend_from_slice(&fk.position);
             out.quaternions.extend_from_slice(&fk.quaternion);
+            out.margins.push(fk.stability_margin);
             if mark {
                 out.statuses.push(status_name(fk.status));
                 out.residuals.push(fk.residual_per_mm);

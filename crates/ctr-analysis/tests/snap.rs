@@ -1,0 +1,250 @@
+//! Snap-through along joint sweeps of the seed's robot with 100 mm longer transmissions,
+//! solved as `ctr-cli fk --threads 1` solves a joint file, checked against an independent
+//! continuation (`sweeps::continuation`) and the closed-form two-tube criterion.
+mod sweeps;
+
+use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
+use ctr_analysis::model::ModelSpec;
+use ctr_core::{Joints, Model, Request, Robot, Solver, Status, TubeParams};
+use ctr_formats::FkResult;
+use sweeps::continuation::{follow, Followed, TwoTubes};
+
+/// Transmissions this much longer than the seed's make its pair snap, mm.
+const EXTRA_TRANSMISSION_MM: f64 = 100.0;
+/// Feed of tube 2 beyond tube 1 in the sweeps, mm.
+const INNER_AHEAD_MM: f64 = 40.0;
+/// Step of the relative angle along a sweep, degrees.
+const STEP_DEG: f64 = 2.0;
+/// A tip within this of the continuation's is on its branch, mm.
+const ON_BRANCH_MM: f64 = 0.5;
+
+fn params() -> Vec<TubeParams<f64>> {
+    sweeps::long_transmissions(EXTRA_TRANSMISSION_MM)
+        .robot
+        .tube_params()
+}
+
+/// The closed-form margin of the symmetric configuration (the tubes' curvatures opposed,
+/// untwisted: an equilibrium at every feed): with the overlap of the curved parts `l`,
+/// the straight length behind it (transmissions, compliance-weighted, and the common
+/// straight part) `L` and `lambda = l sqrt|C|`, the twist perturbation
+/// `db'' = -|C| db` with `db(0) = L db'(0)` gives
+/// `db'(l) / db'(0) = cos(lambda) - (L / l) lambda sin(lambda)`, zero at the critical
+/// feed `(L / l) lambda tan(lambda) = 1` (Gilbert, Hendrick & Webster 2016; for
+/// `L = 0`, `lambda = pi / 2`, Dupont et al. 2010).
+fn closed_form_margin(params: &[TubeParams<f64>], s1: f64) -> f64 {
+    let two = TwoTubes::new(params, [s1, s1 + INNER_AHEAD_MM]);
+    let (start, end) = two.overlap().expect("the curved parts overlap");
+    let l = end - start;
+    let straight = two.transmission() + start;
+    let lambda = l * two.coupling().abs().sqrt();
+    lambda.cos() - straight / l * lambda * lambda.sin()
+}
+
+/// The relative angle of the symmetric configuration, degrees.
+fn symmetric_deg(params: &[TubeParams<f64>]) -> f64 {
+    sweeps::relaxed_deg(params) + 180.0
+}
+
+fn cold(robot: &Robot<f64, 2>, s1: f64, rel_deg: f64) -> ctr_core::Solution<f64, 2> {
+    Solver::default()
+        .solve(
+            robot,
+            Request::new(
+                Joints::from_mm_deg([s1, s1 + INNER_AHEAD_MM], [0.0, rel_deg]),
+                Model::Torsion,
+            )
+            .cold(),
+        )
+        .unwrap()
+}
+
+#[test]
+fn the_margin_at_the_symmetric_configuration_is_the_closed_form_and_vanishes_at_the_critical_feed()
+{
+    let params = params();
+    let robot: Robot<f64, 2> = Robot::new([params[0], params[1]]).unwrap();
+    let sym = symmetric_deg(&params);
+    for s1 in [15.0, 20.0, 25.0, 28.0, 30.0, 31.5] {
+        let sol = cold(&robot, s1, sym);
+        let want = closed_form_margin(&params, s1);
+        eprintln!(
+            "s1 = {s1}: margin {:.6}, closed form {want:.6}",
+            sol.stability_margin
+        );
+        assert!(
+            (sol.stability_margin - want).abs() < 1e-5,
+            "s1 = {s1}: {} vs {want}",
+            sol.stability_margin
+        );
+    }
+    // the critical feed: the closed form's zero, and where the core stops returning the
+    // symmetric equilibrium (past it that one is unstable and the solver takes a stable
+    // twisted one)
+    let bisect = |below: &dyn Fn(f64) -> bool| {
+        let (mut lo, mut hi) = (20.0, 45.0);
+        assert!(below(lo) && !below(hi));
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if below(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    };
+    let closed = bisect(&|s1| closed_form_margin(&params, s1) > 0.0);
+    let core = bisect(&|s1| {
+        let sol = cold(&robot, s1, sym);
+        sol.base_twist_per_mm[0].abs() < 1e-9 && sol.stability_margin > 0.0
+    });
+    eprintln!("critical feed s1: closed form {closed:.4} mm, core {core:.4} mm");
+    assert!((closed - core).abs() < 0.01, "{closed} vs {core}");
+    let past = cold(&robot, core + 1.0, sym);
+    eprintln!(
+        "1 mm past it: margin {:.4}, base twist {:.2e} rad/mm",
+        past.stability_margin, past.base_twist_per_mm[0]
+    );
+    assert!(past.stability_margin > 0.0 && past.base_twist_per_mm[0].abs() > 1e-6);
+}
+
+/// One sweep: the rows, the continuation along them and the rows as solved.
+struct Sweep {
+    s1: f64,
+    followed: Vec<Followed>,
+    solved: Vec<FkResult>,
+}
+
+fn sweep(params: &[TubeParams<f64>], s1: f64) -> Sweep {
+    let s = [s1, s1 + INNER_AHEAD_MM];
+    let rows = sweeps::full_turn(s, sweeps::relaxed_deg(params), STEP_DEG);
+    let angles: Vec<[f64; 2]> = rows
+        .iter()
+        .map(|r| [r[1].to_radians(), r[3].to_radians()])
+        .collect();
+    let followed = follow(params, s, &angles);
+    let spec = sweeps::long_transmissions(EXTRA_TRANSMISSION_MM);
+    let model = ModelSpec::from_spec(&spec).rows().unwrap();
+    // as `ctr-cli fk --threads 1` solves a joint file
+    let options = BatchOptions {
+        threads: 1,
+        chunk_rows: WARM_CHUNK_ROWS,
+    };
+    let solved = batch_fk(&model, rows.as_flattened(), None, &options, &())
+        .unwrap()
+        .into_iter()
+        .map(Result::unwrap)
+        .collect();
+    Sweep {
+        s1,
+        followed,
+        solved,
+    }
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn sweeps_follow_the_branch_of_the_continuation_and_the_margin_foretells_each_snap() {
+    let params = params();
+    // two feeds below the critical one (no snap) and three past it
+    let sweeps: Vec<Sweep> = [20.0, 28.0, 40.0, 55.0, 70.0]
+        .iter()
+        .map(|&s1| sweep(&params, s1))
+        .collect();
+    let mut lowest_calm = f64::MAX;
+    let mut highest_before_snap = f64::MIN;
+    for sw in &sweeps {
+        let jumps: Vec<usize> = (0..sw.followed.len())
+            .filter(|&i| sw.followed[i].jumped)
+            .collect();
+        // on the continuation's branch, the rows right after a jump aside
+        let judged: Vec<usize> = (0..sw.solved.len())
+            .filter(|i| !jumps.contains(i))
+            .collect();
+        let on = judged
+            .iter()
+            .filter(|&&i| distance(sw.solved[i].position, sw.followed[i].eq.tip) <= ON_BRANCH_MM)
+            .count();
+        let not_converged = sw
+            .solved
+            .iter()
+            .filter(|f| f.status != Status::Converged)
+            .count();
+        let margin_error = judged
+            .iter()
+            .map(|&i| (sw.solved[i].stability_margin - sw.followed[i].eq.slope).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "s1 = {}: {} rows, snaps at rows {jumps:?}, {on} of {} on the branch, {not_converged} not converged, margin vs continuation {margin_error:.1e}",
+            sw.s1,
+            sw.solved.len(),
+            judged.len()
+        );
+        assert!(on as f64 >= 0.98 * judged.len() as f64, "s1 = {}", sw.s1);
+        assert_eq!(not_converged, 0, "s1 = {}", sw.s1);
+        assert!(margin_error < 1e-3, "s1 = {}", sw.s1);
+        let margins: Vec<f64> = sw.solved.iter().map(|f| f.stability_margin).collect();
+        let lowest = margins.iter().copied().fold(f64::MAX, f64::min);
+        if jumps.is_empty() {
+            lowest_calm = lowest_calm.min(lowest);
+            continue;
+        }
+        // hysteresis: it snaps once each way, at two different angles of the turn
+        let n = (sw.solved.len() - 1) / 2;
+        assert_eq!(jumps.len(), 2, "s1 = {}", sw.s1);
+        assert!(jumps[0] <= n && jumps[1] > n);
+        assert_ne!(jumps[0], 2 * n + 1 - jumps[1], "no hysteresis");
+        for &j in &jumps {
+            let fold = sw.followed[j].fold.expect("a jump ends a branch");
+            let before = &margins[j - 3..j];
+            highest_before_snap = highest_before_snap.max(before[2]);
+            // falls in the last steps, to the sweep's lowest
+            assert!(before[0] > before[1] && before[1] > before[2], "{before:?}");
+            assert!(before[2] <= lowest + 1e-12);
+            // near a fold the margin goes as the square root of the angle left: its
+            // square, extrapolated from the last two rows, reaches zero where the
+            // continuation's branch ends
+            let (a, b) = (before[1].powi(2), before[2].powi(2));
+            let predicted = b / (a - b);
+            eprintln!(
+                "  snap at row {j}: margins {before:.3?}, fold predicted {predicted:.2} of a step after the last row, continuation {fold:.2}"
+            );
+            assert!((predicted - fold).abs() < 0.25, "{predicted} vs {fold}");
+        }
+    }
+    eprintln!(
+        "lowest margin of a sweep that does not snap {lowest_calm:.3}; margin one step before a snap up to {highest_before_snap:.3}"
+    );
+}
+
+#[test]
+fn the_margin_is_the_stiffness_of_the_softest_twist_mode_relative_to_uncoupled_tubes() {
+    let params = params();
+    let spec = sweeps::long_transmissions(EXTRA_TRANSMISSION_MM);
+    let model = ModelSpec::from_spec(&spec).rows().unwrap();
+    let mut worst: f64 = 0.0;
+    for s1 in [20.0, 30.0, 45.0] {
+        let two = TwoTubes::new(&params, [s1, s1 + INNER_AHEAD_MM]);
+        for rel in [150.0, 200.0, 250.0, 300.0] {
+            let theta = [0.0, f64::to_radians(rel)];
+            let x = two
+                .roots(theta)
+                .into_iter()
+                .filter(|&x| two.residual(theta, x).1 > 0.0)
+                .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+                .unwrap();
+            let want = two.stiffness_ratio(theta, x);
+            let fk = model
+                .solver()
+                .fk(&[s1, 0.0, s1 + INNER_AHEAD_MM, rel])
+                .unwrap();
+            worst = worst.max((fk.stability_margin / want - 1.0).abs());
+        }
+    }
+    eprintln!("margin / stiffness ratio of the softest twist mode: within {worst:.3}");
+    assert!(worst < 0.1);
+}
