@@ -391,6 +391,7 @@ fn tables() -> impl Strategy<Value = Tables> {
                     status: Status::Converged,
                     residual_per_mm: residual,
                     iterations: 3,
+                    stability_margin: 1.0,
                 });
                 joints.push(file_order);
                 out_rows.push(row);
