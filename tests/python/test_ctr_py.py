@@ -392,7 +392,7 @@ def test_bad_options(robot, q):
         robot.fk(q, "bent")
     with pytest.raises(ctr_py.InputError, match=r'^on_error: "skip" is not fail or mark'):
         robot.fk(q, on_error="skip")
-    with pytest.raises(OverflowError):
+    with pytest.raises(ctr_py.InputError, match=r"^threads: -1 is not in 0\.\.=1024"):
         robot.fk(q, threads=-1)
     for call in (robot.fk, robot.jacobian):
         with pytest.raises(ctr_py.InputError, match=r"^threads: 100000 is not in 0\.\.=1024"):
