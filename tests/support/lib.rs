@@ -178,6 +178,26 @@ pub mod props {
         }
     }
 
+    /// Runs `property` on [`config`]`(cases)` draws of `strategy`, panicking with the
+    /// smallest failing input; `source_file` (the caller's `file!()`) places the
+    /// regressions file proptest keeps beside the test.
+    pub fn check<S: Strategy>(
+        source_file: &'static str,
+        cases: u32,
+        strategy: S,
+        property: impl Fn(S::Value) -> Result<(), proptest::test_runner::TestCaseError>,
+    ) where
+        S::Value: std::fmt::Debug,
+    {
+        let config = Config {
+            source_file: Some(source_file),
+            ..config(cases)
+        };
+        if let Err(e) = proptest::test_runner::TestRunner::new(config).run(&strategy, property) {
+            panic!("{e}");
+        }
+    }
+
     /// A random tube of a physical robot, built from the inside out: its inner diameter
     /// is the next tube's outer diameter plus a clearance (`inner_od` is `None` for
     /// the innermost tube). Ranges: walls 0.08 to 0.6 mm, clearances 0.02 to 0.4 mm,

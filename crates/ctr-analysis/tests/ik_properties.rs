@@ -13,23 +13,7 @@ use ctr_core::{Model, TubeParams};
 use ctr_formats::{AnyRobot, IkTarget, TubeLimits};
 use ctr_suite::props;
 use proptest::prelude::*;
-use proptest::test_runner::{TestCaseError, TestRunner};
-
-fn check<S: Strategy>(
-    cases: u32,
-    strategy: S,
-    property: impl Fn(S::Value) -> Result<(), TestCaseError>,
-) where
-    S::Value: std::fmt::Debug,
-{
-    let config = proptest::test_runner::Config {
-        source_file: Some(file!()),
-        ..props::config(cases)
-    };
-    if let Err(e) = TestRunner::new(config).run(&strategy, property) {
-        panic!("{e}");
-    }
-}
+use proptest::test_runner::TestCaseError;
 
 /// A robot, limits for it (feed increments of 5 to 60 mm from 0 to 30 mm, rotation
 /// ranges of 30 to 360 degrees anywhere in [-360, 360]), and `2 n` fractions.
@@ -111,7 +95,7 @@ fn ik(params: &[TubeParams<f64>], limits: &[TubeLimits]) -> Option<Ik> {
 #[test]
 fn ik_of_a_reachable_target_reaches_it() {
     let cold_failures = std::cell::RefCell::new(0usize);
-    check(48, case(), |(params, limits, u)| {
+    props::check(file!(), 48, case(), |(params, limits, u)| {
         let params = unique(&params);
         let Some(mut ik) = ik(&params, &limits) else {
             return Err(TestCaseError::reject("limits leave no joints"));
@@ -155,7 +139,7 @@ fn ik_of_a_reachable_target_reaches_it() {
 #[test]
 fn no_iterate_leaves_the_limits() {
     let strategy = (case(), proptest::array::uniform3(-400.0..400.0f64));
-    check(48, strategy, |((params, limits, u), far)| {
+    props::check(file!(), 48, strategy, |((params, limits, u), far)| {
         let Some(mut ik) = ik(&params, &limits) else {
             return Err(TestCaseError::reject("limits leave no joints"));
         };

@@ -23,28 +23,9 @@ use ctr_core::{
 };
 use ctr_suite::props;
 use proptest::prelude::*;
-use proptest::test_runner::{TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::cell::RefCell;
 use std::f64::consts::PI;
-
-/// Runs `property` on `cases` draws of `strategy` (see [`props::config`]), panicking
-/// with the smallest failing input.
-fn check<S: Strategy>(
-    cases: u32,
-    strategy: S,
-    property: impl Fn(S::Value) -> Result<(), TestCaseError>,
-) where
-    S::Value: std::fmt::Debug,
-{
-    let config = proptest::test_runner::Config {
-        source_file: Some(file!()),
-        ..props::config(cases)
-    };
-    let mut runner = TestRunner::new(config);
-    if let Err(e) = runner.run(&strategy, property) {
-        panic!("{e}");
-    }
-}
 
 /// Fractions of the feed ranges and angles (degrees) for joints on a robot.
 type Fractions = (Vec<f64>, Vec<f64>);
@@ -161,7 +142,7 @@ fn every_solve_is_a_finite_pose_or_a_typed_error() {
             )
         })
     });
-    check(384, strategy, |(params, draws, rigid, config)| {
+    props::check(file!(), 384, strategy, |(params, draws, rigid, config)| {
         with_n!(
             params,
             finite_or_error(&params, &draws, rigid, config, &stats)
@@ -354,9 +335,12 @@ fn uniqueness_ratio<const N: usize>(robot: &Robot<f64, N>) -> f64 {
 #[test]
 fn cold_and_warm_starts_agree_where_the_solution_is_unique() {
     let differ = RefCell::new([0usize; 2]);
-    check(256, robot_and_draws(2..=4, 3), |(params, draws)| {
-        with_n!(params, cold_and_warm(&params, &draws, &differ))
-    });
+    props::check(
+        file!(),
+        256,
+        robot_and_draws(2..=4, 3),
+        |(params, draws)| with_n!(params, cold_and_warm(&params, &draws, &differ)),
+    );
     let [d, n] = *differ.borrow();
     eprintln!("unrestricted robots: cold and warm starts on different solutions in {d} of {n} converged pairs");
 }
@@ -434,7 +418,7 @@ fn the_tip_is_continuous_along_small_steps_away_from_the_snap() {
             proptest::collection::vec(-1.0..=1.0f64, 2 * n),
         )
     });
-    check(128, strategy, |(params, u, theta, dir)| {
+    props::check(file!(), 128, strategy, |(params, u, theta, dir)| {
         with_n!(params, continuity(&params, &u, &theta, &dir, &steps))
     });
     let [taken, cut] = *steps.borrow();
@@ -526,7 +510,8 @@ const JACOBIAN_MARGIN: f64 = 0.1;
 #[test]
 fn joint_jacobian_is_central_differences() {
     let compared = RefCell::new(0usize);
-    check(
+    props::check(
+        file!(),
         192,
         (robot_and_draws(1..=4, 1), any::<bool>()),
         |((params, draws), rigid)| {
@@ -690,10 +675,15 @@ fn rigid_closed_form<const N: usize>(
 /// `1 / F`) unless already below 1e-8 mm.
 #[test]
 fn torsion_tends_to_the_rigid_closed_form_as_gj_grows() {
-    check(192, robot_and_draws(1..=4, 1), |(params, draws)| {
-        let (u, t) = &draws[0];
-        with_n!(params, rigid_limit(&params, u, t))
-    });
+    props::check(
+        file!(),
+        192,
+        robot_and_draws(1..=4, 1),
+        |(params, draws)| {
+            let (u, t) = &draws[0];
+            with_n!(params, rigid_limit(&params, u, t))
+        },
+    );
 }
 
 fn rigid_limit<const N: usize>(

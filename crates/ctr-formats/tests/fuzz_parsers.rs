@@ -26,25 +26,8 @@ use ctr_formats::{
 };
 use ctr_suite::props;
 use proptest::prelude::*;
-use proptest::test_runner::{TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::path::{Path, PathBuf};
-
-/// Runs `property` on `cases` draws of `strategy` (see [`props::config`]).
-fn check<S: Strategy>(
-    cases: u32,
-    strategy: S,
-    property: impl Fn(S::Value) -> Result<(), TestCaseError>,
-) where
-    S::Value: std::fmt::Debug,
-{
-    let config = proptest::test_runner::Config {
-        source_file: Some(file!()),
-        ..props::config(cases)
-    };
-    if let Err(e) = TestRunner::new(config).run(&strategy, property) {
-        panic!("{e}");
-    }
-}
 
 // ---------------------------------------------------------------- mutations
 
@@ -269,7 +252,7 @@ fn limits() -> impl Strategy<Value = TubeLimits> {
 /// bit for bit.
 #[test]
 fn robot_files_round_trip() {
-    check(256, robot_file(), |file| {
+    props::check(file!(), 256, robot_file(), |file| {
         let text = file.to_toml();
         let back = RobotFile::parse(&text, "rt.toml")
             .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
@@ -289,7 +272,7 @@ fn robot_files_round_trip() {
 #[test]
 fn mutated_robot_files_fail_located() {
     let seed = robot_file().prop_map(|f| f.to_toml().into_bytes());
-    check(1024, mutated(seed), |bytes| robot_bytes(&bytes));
+    props::check(file!(), 1024, mutated(seed), |bytes| robot_bytes(&bytes));
 }
 
 fn robot_bytes(bytes: &[u8]) -> Result<(), TestCaseError> {
@@ -423,7 +406,7 @@ fn write_tables(t: &Tables) -> Vec<u8> {
 /// every carried field is the text written, on any number of threads.
 #[test]
 fn joint_and_target_files_round_trip() {
-    check(256, tables(), |t| {
+    props::check(file!(), 256, tables(), |t| {
         let bytes = write_tables(&t);
         let robot = AnyRobot::new(&t.params).expect("valid robot");
         let text = String::from_utf8_lossy(&bytes).into_owned();
@@ -461,7 +444,7 @@ fn mutated_tables_fail_located() {
     let seed = tables().prop_map(|t| (write_tables(&t), t.params));
     let strategy =
         seed.prop_flat_map(|(bytes, params)| (mutated(Just(bytes)), Just(params), any::<bool>()));
-    check(1024, strategy, |(bytes, params, position_only)| {
+    props::check(file!(), 1024, strategy, |(bytes, params, position_only)| {
         table_bytes(&bytes, &params, position_only)
     });
 }
@@ -617,7 +600,7 @@ fn write_recording(r: &Rec) -> Vec<u8> {
 /// labels and runs, numbers bit for bit.
 #[test]
 fn recordings_round_trip() {
-    check(256, recording(), |r| {
+    props::check(file!(), 256, recording(), |r| {
         let bytes = write_recording(&r);
         let text = String::from_utf8_lossy(&bytes).into_owned();
         let rec = Recording::read(&bytes[..], "rt.csv", r.n)
@@ -642,7 +625,9 @@ fn recordings_round_trip() {
 fn mutated_recordings_fail_located() {
     let seed = recording().prop_map(|r| (write_recording(&r), r.n));
     let strategy = seed.prop_flat_map(|(bytes, n)| (mutated(Just(bytes)), Just(n)));
-    check(1024, strategy, |(bytes, n)| recording_bytes(&bytes, n));
+    props::check(file!(), 1024, strategy, |(bytes, n)| {
+        recording_bytes(&bytes, n)
+    });
 }
 
 fn recording_bytes(bytes: &[u8], n: usize) -> Result<(), TestCaseError> {

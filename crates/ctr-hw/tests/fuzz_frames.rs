@@ -27,25 +27,9 @@ use ctr_hw::protocol::{
 use ctr_hw::transport::MockTransport;
 use ctr_suite::props;
 use proptest::prelude::*;
-use proptest::test_runner::{TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::path::Path;
 use std::time::Duration;
-
-fn check<S: Strategy>(
-    cases: u32,
-    strategy: S,
-    property: impl Fn(S::Value) -> Result<(), TestCaseError>,
-) where
-    S::Value: std::fmt::Debug,
-{
-    let config = proptest::test_runner::Config {
-        source_file: Some(file!()),
-        ..props::config(cases)
-    };
-    if let Err(e) = TestRunner::new(config).run(&strategy, property) {
-        panic!("{e}");
-    }
-}
 
 /// A byte, half the time one of the header's.
 fn byte() -> impl Strategy<Value = u8> {
@@ -138,7 +122,7 @@ fn scan_accounts_for_every_byte() {
         1 => proptest::collection::vec(byte(), 0..64),
         2 => stream(),
     ];
-    check(2048, strategy, |buf| scan_is_consistent(&buf));
+    props::check(file!(), 2048, strategy, |buf| scan_is_consistent(&buf));
 }
 
 /// Drains a decoder.
@@ -155,7 +139,9 @@ fn frames(d: &mut Decoder) -> Vec<Frame> {
 #[test]
 fn chunked_reads_cut_the_same_frames() {
     let strategy = (stream(), proptest::collection::vec(1..16usize, 1..40));
-    check(1024, strategy, |(bytes, cuts)| chunks(&bytes, &cuts));
+    props::check(file!(), 1024, strategy, |(bytes, cuts)| {
+        chunks(&bytes, &cuts)
+    });
 }
 
 fn chunks(bytes: &[u8], cuts: &[usize]) -> Result<(), TestCaseError> {
@@ -195,7 +181,7 @@ fn packets_round_trip_through_noise() {
         any::<u8>(),
         1..8usize,
     );
-    check(1024, strategy, |(p, noise, error, chunk)| {
+    props::check(file!(), 1024, strategy, |(p, noise, error, chunk)| {
         prop_assume!(!noise.windows(4).any(|w| w == HEADER));
         let bytes = p.encode().expect("valid packet");
         let mut d = Decoder::new();
@@ -242,7 +228,7 @@ fn the_emulator_answers_any_bytes_with_valid_frames() {
         ],
         1..6,
     );
-    check(512, strategy, |writes| emulated(&writes));
+    props::check(file!(), 512, strategy, |writes| emulated(&writes));
 }
 
 fn emulated(writes: &[Vec<u8>]) -> Result<(), TestCaseError> {
@@ -277,20 +263,25 @@ fn the_bus_survives_any_reply() {
                 StatusPacket::new(id, StatusError(e), params).encode().unwrap_or_default()
             }),
     ];
-    check(256, proptest::collection::vec(reply, 1..4), |replies| {
-        let mut link = MockTransport::new();
-        for r in &replies {
-            link.push_reply(r.clone());
-        }
-        let config = BusConfig {
-            response_timeout: Duration::from_millis(1),
-            max_attempts: 2,
-        };
-        let mut bus = Bus::new(link, config);
-        let _ = bus.ping(1);
-        let _ = bus.read(1, 132, 4);
-        Ok(())
-    });
+    props::check(
+        file!(),
+        256,
+        proptest::collection::vec(reply, 1..4),
+        |replies| {
+            let mut link = MockTransport::new();
+            for r in &replies {
+                link.push_reply(r.clone());
+            }
+            let config = BusConfig {
+                response_timeout: Duration::from_millis(1),
+                max_attempts: 2,
+            };
+            let mut bus = Bus::new(link, config);
+            let _ = bus.ping(1);
+            let _ = bus.read(1, 132, 4);
+            Ok(())
+        },
+    );
 }
 
 /// Every stream kept under `tests/corpus/frames/` passes the properties above.
