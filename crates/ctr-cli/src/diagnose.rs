@@ -226,6 +226,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         candidates: args.effects.unwrap_or_else(|| EffectId::ALL.to_vec()),
         threads: threads(args.threads),
         clearance_table: None,
+        ..Default::default()
     };
     let outputs = Outputs {
         report: &args.report,

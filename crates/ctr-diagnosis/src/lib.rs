@@ -76,6 +76,7 @@ mod numbers;
 mod options;
 mod plots;
 mod prose;
+mod quantiles;
 mod report;
 mod residual;
 mod screen;
@@ -86,6 +87,8 @@ mod suggest;
 #[cfg(feature = "synth")]
 pub mod synth;
 mod uncertainty;
+#[cfg(feature = "synth")]
+mod unmodelled;
 mod verify;
 
 pub use calibrate::calibrate;
@@ -96,7 +99,7 @@ pub use html::{escape_html, Page};
 pub use hybrid::{FOLDS, MAX_TERMS};
 pub use locate::Statement;
 pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
-pub use options::Options;
+pub use options::{Checks, Options};
 pub use plots::Plot;
 pub use report::{
     fitted_file, Correlated, Diagnosis, Empirical, ExpectedInterval, Figures, Finding, JointRun,

@@ -15,6 +15,35 @@ pub struct Options {
     /// `calibrate` only: fit the clearance as a smooth table of this many values per
     /// pair over one turn (the seed's measured "database") instead of a cosine profile.
     pub clearance_table: Option<usize>,
+    /// The checks a finding must pass before the report calls it physics (all on; one
+    /// is turned off only to show what it guards against).
+    pub checks: Checks,
+}
+
+/// The acceptance checks of a finding (module `verify`): each `true` runs it.
+///
+/// ```
+/// let all = ctr_diagnosis::Checks::default();
+/// assert!(all.beats_generic && all.constant && all.identified);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Checks {
+    /// It beats a generic empirical correction with as many parameters, held out.
+    pub beats_generic: bool,
+    /// Its parameters fit better constant than proportional to a feature of the rows.
+    pub constant: bool,
+    /// Its parameters' joint 95 % region excludes the nominal.
+    pub identified: bool,
+}
+
+impl Default for Checks {
+    fn default() -> Self {
+        Checks {
+            beats_generic: true,
+            constant: true,
+            identified: true,
+        }
+    }
 }
 
 impl Default for Options {
@@ -24,6 +53,7 @@ impl Default for Options {
             candidates: EffectId::ALL.to_vec(),
             threads: 0,
             clearance_table: None,
+            checks: Checks::default(),
         }
     }
 }

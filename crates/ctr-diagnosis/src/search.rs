@@ -303,16 +303,25 @@ pub fn diagnose(
     }
     // every finding checked with the others in place; those that fail are taken out
     // and the rest refitted together, until all pass
-    let ctx = verify::Context::new(rec, held, huber, threads, start.noise.rms_mm);
+    let ctx = verify::Context::new(rec, held, huber, threads, start.noise.rms_mm, opt.checks);
     let last_round = tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
     loop {
-        let checks: Vec<verify::Checked> = accepted
+        let mut checks: Vec<verify::Checked> = accepted
             .iter()
             .map(|&c| ctx.check(&current, &current_e, c))
             .collect();
         for ch in &checks {
             if let Some(f) = findings.iter_mut().find(|f| f.effect == ch.effect) {
                 f.empirical_heldout_rms_mm = ch.empirical_heldout_rms_mm;
+            }
+        }
+        if checks.iter().all(|c| c.failure.is_none()) && !accepted.is_empty() {
+            // 3. identified: only once the other checks pass (it needs the joint fit's
+            // covariance, and a finding taken out changes everyone's)
+            for (c, failure) in ctx.identified(&current, model, &accepted, fit_rows) {
+                if let Some(ch) = checks.iter_mut().find(|ch| ch.effect == c) {
+                    ch.failure = Some(failure);
+                }
             }
         }
         let failed: Vec<&verify::Checked> = checks.iter().filter(|c| c.failure.is_some()).collect();
@@ -391,6 +400,14 @@ fn removed_note(ch: &verify::Checked) -> String {
             "{REMOVED}its parameters fit the data better proportional to \
              {feature} than constant ({heldout_rms_mm:.3} against {constant_heldout_rms_mm:.3} \
              mm held out, linearised): it stands in for a gain or drift outside the vocabulary"
+        ),
+        Some(verify::Failure::NotIdentified {
+            statistic,
+            threshold,
+        }) => format!(
+            "{REMOVED}with every finding fitted together, its parameters are not told \
+             from the nominal (Wald statistic {statistic:.2} against the 95 % threshold \
+             {threshold:.2}: the nominal lies inside their 95 % region)"
         ),
         None => String::new(),
     }

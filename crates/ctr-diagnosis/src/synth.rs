@@ -59,6 +59,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub use crate::unmodelled::{Unmodelled, WANDER_COMPONENTS, WANDER_PERIOD_SPAN};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
 use ctr_analysis::simulate::{predict, SimError};
@@ -195,82 +196,6 @@ pub struct SynthSpec {
     /// Effects outside the contract's vocabulary acting in the world (none by default):
     /// what a real robot holds beyond any model's effects.
     pub unmodelled: Vec<Unmodelled>,
-}
-
-/// An effect outside the contract's vocabulary, for blind tests of what the diagnosis
-/// says when no effect it knows is the cause.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Unmodelled {
-    /// A wrong lead-screw pitch: the actual feed is `gain` x the commanded.
-    FeedGain {
-        /// The tube, 0-based (0 the outermost).
-        tube: usize,
-        /// Actual over commanded feed.
-        gain: f64,
-    },
-    /// A wrong gear ratio: the actual rotation is `gain` x the commanded.
-    RotationGain {
-        /// The tube, 0-based.
-        tube: usize,
-        /// Actual over commanded rotation.
-        gain: f64,
-    },
-    /// A gear with a once-per-turn error: the actual rotation is the commanded `theta`
-    /// plus `amplitude_deg sin(theta + phase_deg)`.
-    GearRunout {
-        /// The tube, 0-based.
-        tube: usize,
-        /// Amplitude of the error, degrees.
-        amplitude_deg: f64,
-        /// Its phase, degrees.
-        phase_deg: f64,
-    },
-    /// A tracker whose frame creeps: measured += `t_s` x `velocity_mm_s`.
-    TrackerDrift {
-        /// Creep of the tracker's frame, mm/s per axis.
-        velocity_mm_s: [f64; 3],
-    },
-    /// A miscalibrated tracker: each measured axis scaled by `1 + scale_error[a]`.
-    TrackerScale {
-        /// Relative scale error per axis.
-        scale_error: [f64; 3],
-    },
-}
-
-impl Unmodelled {
-    /// The actual joints (file order and units) for the commanded `q`.
-    fn actuate(&self, q: &mut [f64]) {
-        match *self {
-            Unmodelled::FeedGain { tube, gain } => q[2 * tube] *= gain,
-            Unmodelled::RotationGain { tube, gain } => q[2 * tube + 1] *= gain,
-            Unmodelled::GearRunout {
-                tube,
-                amplitude_deg,
-                phase_deg,
-            } => {
-                let theta = q[2 * tube + 1];
-                q[2 * tube + 1] = theta + amplitude_deg * (theta + phase_deg).to_radians().sin();
-            }
-            Unmodelled::TrackerDrift { .. } | Unmodelled::TrackerScale { .. } => {}
-        }
-    }
-
-    /// The tracker's reading of the tip `p` at time `t_s`.
-    fn measure(&self, p: &mut [f64; 3], t_s: f64) {
-        match *self {
-            Unmodelled::TrackerDrift { velocity_mm_s } => {
-                for a in 0..3 {
-                    p[a] += t_s * velocity_mm_s[a];
-                }
-            }
-            Unmodelled::TrackerScale { scale_error } => {
-                for a in 0..3 {
-                    p[a] *= 1.0 + scale_error[a];
-                }
-            }
-            _ => {}
-        }
-    }
 }
 
 impl Default for SynthSpec {

@@ -38,6 +38,7 @@ use crate::candidates::{EffectId, Label};
 use crate::fit::Problem;
 use crate::numbers::{leaves, replace, sig};
 use crate::prose::{explain, parameters};
+use crate::quantiles::t975;
 use crate::report::{Correlated, Finding};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::Recording;
@@ -115,25 +116,6 @@ pub(crate) struct Assessment {
     pub t: f64,
     /// The method, in words.
     pub method: String,
-}
-
-/// The 97.5 % quantile of Student's t with `dof` degrees of freedom (exact to 3
-/// decimals below 6, a Cornish-Fisher expansion beyond).
-fn t975(dof: usize) -> f64 {
-    const SMALL: [f64; 5] = [12.706, 4.303, 3.182, 2.776, 2.571];
-    const Z: f64 = 1.959_963_985;
-    match dof {
-        0 => f64::INFINITY,
-        1..=5 => SMALL[dof - 1],
-        _ => {
-            let v = dof as f64;
-            let z2 = Z * Z;
-            Z + (z2 * Z + Z) / (4.0 * v)
-                + (5.0 * z2 * z2 * Z + 16.0 * z2 * Z + 3.0 * Z) / (96.0 * v * v)
-                + (3.0 * z2 * z2 * z2 * Z + 19.0 * z2 * z2 * Z + 17.0 * z2 * Z - 15.0 * Z)
-                    / (384.0 * v * v * v)
-        }
-    }
 }
 
 /// The pseudo-inverse of the information `h` on its identified directions, computed
@@ -664,18 +646,4 @@ pub(crate) fn attach(
         correlated: a.correlated(),
     };
     (model, overall, Some(a))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn t_quantile_matches_tables() {
-        // Student's t, 97.5 %: 10 -> 2.228, 30 -> 2.042, 120 -> 1.980
-        for (dof, want) in [(3, 3.182), (10, 2.228), (30, 2.042), (120, 1.980)] {
-            assert!((t975(dof) - want).abs() < 2e-3, "{dof}: {}", t975(dof));
-        }
-        assert!((t975(100_000) - 1.95996).abs() < 1e-4);
-    }
 }

@@ -29,23 +29,43 @@
 //!    or a drift on its own directions (a feed *offset* where the feed *gain* is
 //!    wrong, a registration where the tracker's scale is): outside the vocabulary.
 //!
-//! A finding that fails is taken out, the others are refitted together, and the checks
-//! run again until every finding passes.
+//! 3. **Its parameters are identified.** With every finding fitted together, the
+//!    covariance of [`uncertainty`] (the larger of the classical and the
+//!    cluster-robust variances, so a structured residual widens it) must put the
+//!    user's nominal values outside the finding's joint 95 % region: the Wald
+//!    statistic `d^T Sigma^+ d` of its parameters' distance `d` from the nominal
+//!    exceeds the chi-square quantile of their rank ([`wald`]). A finding
+//!    whose values the data cannot tell from the nominal is no finding, however much
+//!    it lowered the cost on the way.
+//!
+//! Checks 1 and 2 run first on every finding; check 3 once they all pass (it needs the
+//! joint fit's covariance, which a finding taken out changes). The findings that fail
+//! are taken out, the others are refitted together, and the checks run again until
+//! every finding passes. [`Checks`] turns one off, to show what it is for.
 
 use crate::candidates::EffectId;
 use crate::empirical::{self, Basis, Field};
 use crate::fit::Problem;
 use crate::hybrid;
 use crate::noise::NOISE_TOLERANCE;
+use crate::options::Checks;
+use crate::quantiles::{chi2_95, Z975};
 use crate::residual::{errors, figures, tips};
+use crate::uncertainty::{self, Assessment};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
+use nalgebra::{DMatrix, DVector};
 
 /// Smallest relative margin by which the model's held-out RMS must undercut that of
 /// the generic empirical correction with as many free parameters, with the finding
 /// taken out, for the finding to count as physics.
 pub const MIN_GAIN_OVER_EMPIRICAL: f64 = 0.02;
+
+/// Eigenvalue of a finding's correlation block, relative to its largest, below which
+/// its direction counts as not identified in the Wald test (a parameter pinned only
+/// with others).
+const WALD_RANK_CUTOFF: f64 = 1e-8;
 
 /// What the checks run on.
 pub(crate) struct Context<'a> {
@@ -63,6 +83,8 @@ pub(crate) struct Context<'a> {
     threads: usize,
     /// The noise estimate's RMS, mm.
     noise_rms_mm: f64,
+    /// Which checks run.
+    checks: Checks,
 }
 
 /// Why a finding failed its checks.
@@ -81,6 +103,13 @@ pub(crate) enum Failure {
         constant_heldout_rms_mm: f64,
         /// Held-out RMS of the proportional ones, mm.
         heldout_rms_mm: f64,
+    },
+    /// The data cannot tell its parameters from the nominal.
+    NotIdentified {
+        /// The Wald statistic of its parameters against the nominal.
+        statistic: f64,
+        /// The 95 % threshold it had to exceed.
+        threshold: f64,
     },
 }
 
@@ -103,6 +132,7 @@ impl<'a> Context<'a> {
         huber_mm: f64,
         threads: usize,
         noise_rms_mm: f64,
+        checks: Checks,
     ) -> Self {
         let fit: Vec<bool> = held.iter().map(|h| !h).collect();
         let yardstick = Basis::joints_and_time(rec, &fit).fields();
@@ -114,6 +144,7 @@ impl<'a> Context<'a> {
             huber_mm,
             threads,
             noise_rms_mm,
+            checks,
         }
     }
 
@@ -168,7 +199,10 @@ impl<'a> Context<'a> {
             };
             let h_emp = self.empirical_heldout(&e_without, size + k);
             out.empirical_heldout_rms_mm = h_emp;
-            if !at_noise && h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp {
+            if self.checks.beats_generic
+                && !at_noise
+                && h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp
+            {
                 out.failure = Some(Failure::Empirical {
                     heldout_rms_mm: h_emp,
                 });
@@ -178,6 +212,9 @@ impl<'a> Context<'a> {
                 return out;
             }
             // 2. constant parameters against parameters proportional to a feature
+            if !self.checks.constant {
+                return out;
+            }
             if let Some((feature, h_const, h_prop)) = self.proportional(m, &e_without, c) {
                 if h_prop < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_const {
                     out.failure = Some(Failure::Varying {
@@ -189,6 +226,43 @@ impl<'a> Context<'a> {
             }
         }
         out
+    }
+
+    /// Check 3 on the findings `accepted` of `m`, fitted together on `fit_rows`
+    /// against the user's model `user`: the failure of each finding whose parameters
+    /// the data do not tell from the nominal. Nothing when the covariance cannot be
+    /// computed (the other checks stand alone then).
+    pub(crate) fn identified(
+        &self,
+        m: &ModelSpec,
+        user: &ModelSpec,
+        accepted: &[EffectId],
+        fit_rows: &[usize],
+    ) -> Vec<(EffectId, Failure)> {
+        if !self.checks.identified {
+            return Vec::new();
+        }
+        let problem =
+            uncertainty::problem_of(self.rec, m, accepted, fit_rows, self.huber_mm, self.threads);
+        let x = problem.read(m);
+        let nominal = problem.read(user);
+        let Some(a) = Assessment::new(&problem, &x, &nominal) else {
+            return Vec::new();
+        };
+        problem
+            .blocks
+            .iter()
+            .filter_map(|&c| {
+                let (statistic, threshold) = wald(&a, c)?;
+                (statistic <= threshold).then_some((
+                    c,
+                    Failure::NotIdentified {
+                        statistic,
+                        threshold,
+                    },
+                ))
+            })
+            .collect()
     }
 
     /// With `c` taken out (its error `e`): the held-out RMS of the linear fit of the
@@ -241,5 +315,151 @@ impl<'a> Context<'a> {
         let terms = empirical::pursue(&fields, e, &w, k);
         let first = terms.first().map(|&(i, _)| names[i].clone())?;
         Some((first, h_const, heldout(&fields, &terms)))
+    }
+}
+
+/// The Wald test of `c`'s parameters against the nominal: `d^T Sigma_cc^+ d` (`d`
+/// fitted less nominal, `Sigma_cc` their covariance block, inverted on the
+/// directions identified) and the 95 % threshold it must exceed: the chi-square
+/// quantile of the block's rank x `(t / z)^2` for the clusters' few degrees of
+/// freedom. `None` when `c` has no parameter here.
+fn wald(a: &Assessment, c: EffectId) -> Option<(f64, f64)> {
+    let idx: Vec<usize> = (0..a.x.len()).filter(|&j| a.effects[j] == c).collect();
+    if idx.is_empty() {
+        return None;
+    }
+    let k = idx.len();
+    let sd: Vec<f64> = idx.iter().map(|&j| a.cov[(j, j)].max(0.0).sqrt()).collect();
+    // the block scaled to a unit diagonal, so the cut-off is relative
+    let scaled = DMatrix::from_fn(k, k, |i, j| {
+        let s = sd[i] * sd[j];
+        if s > 0.0 {
+            a.cov[(idx[i], idx[j])] / s
+        } else {
+            0.0
+        }
+    });
+    let d = DVector::from_fn(k, |i, _| {
+        if sd[i] > 0.0 {
+            (a.x[idx[i]] - a.nominal[idx[i]]) / sd[i]
+        } else {
+            0.0
+        }
+    });
+    let eig = scaled.symmetric_eigen();
+    let top = eig.eigenvalues.amax();
+    let mut stat = 0.0;
+    let mut rank = 0;
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > WALD_RANK_CUTOFF * top {
+            stat += eig.eigenvectors.column(i).dot(&d).powi(2) / l;
+            rank += 1;
+        }
+    }
+    if rank == 0 {
+        return Some((0.0, f64::INFINITY));
+    }
+    Some((stat, chi2_95(rank) * (a.t / Z975).powi(2)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::{record, CommandedRun, SynthSpec};
+    use ctr_formats::{Latency, RobotSpec};
+
+    /// Tracker noise of the test recordings, mm per axis.
+    const SIGMA_MM: f64 = 0.2;
+
+    fn user() -> ModelSpec {
+        let spec = RobotSpec::from_toml_str(
+            "[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\nlength_mm = 200.0\n\
+             curved_length_mm = 80.0\ncurvature_radius_mm = 100.0\nyoungs_modulus_mpa = 58000.0\n\
+             poisson_ratio = 0.33\n",
+            "one.toml",
+        )
+        .unwrap();
+        ModelSpec::from_spec(&spec)
+    }
+
+    fn with_latency(tau_s: f64) -> ModelSpec {
+        let mut m = user();
+        m.effects.latency = Some(Latency { tau_s });
+        m
+    }
+
+    /// A one-tube recording of `world`: turned and fed back and forth, 2 samples a second.
+    fn recording(world: &ModelSpec) -> Recording {
+        let turn: Vec<Vec<f64>> = (0..120)
+            .map(|i| vec![120.0, 12.0 * f64::from(i % 60) - 30.0 * f64::from(i / 60)])
+            .collect();
+        let feed: Vec<Vec<f64>> = (0..80)
+            .map(|i| vec![100.0 + 1.5 * f64::from(i % 40), 45.0])
+            .collect();
+        let runs = [
+            CommandedRun {
+                label: "turn".into(),
+                joints: turn,
+            },
+            CommandedRun {
+                label: "feed".into(),
+                joints: feed,
+            },
+        ];
+        let spec = SynthSpec {
+            noise_sigma_mm: SIGMA_MM,
+            seed: 11,
+            ..SynthSpec::default()
+        };
+        record(world, &runs, &spec).unwrap().recording
+    }
+
+    fn identified(world: &ModelSpec, fitted: &ModelSpec) -> Vec<(EffectId, Failure)> {
+        let rec = recording(world);
+        let held: Vec<bool> = (0..rec.rows.len()).map(|r| r % 4 == 3).collect();
+        let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
+        let noise_rms_mm = 3f64.sqrt() * SIGMA_MM;
+        let ctx = Context::new(
+            &rec,
+            &held,
+            3.0 * SIGMA_MM,
+            1,
+            noise_rms_mm,
+            Checks::default(),
+        );
+        ctx.identified(fitted, &user(), &[EffectId::Latency], &fit_rows)
+    }
+
+    #[test]
+    fn a_finding_the_data_cannot_tell_from_the_nominal_fails_the_identification_check() {
+        // no latency in the world; a finding of 10 ms (what noise might leave a search
+        // with) is inside its own 95 % region around zero
+        let failures = identified(&user(), &with_latency(0.01));
+        assert!(
+            matches!(
+                failures.as_slice(),
+                [(EffectId::Latency, Failure::NotIdentified { statistic, threshold })]
+                    if statistic < threshold
+            ),
+            "{failures:?}"
+        );
+        // the same check off: nothing
+        let rec = recording(&user());
+        let held = vec![false; rec.rows.len()];
+        let off = Checks {
+            identified: false,
+            ..Checks::default()
+        };
+        let ctx = Context::new(&rec, &held, 0.6, 1, 0.35, off);
+        let rows: Vec<usize> = (0..rec.rows.len()).collect();
+        assert!(ctx
+            .identified(&with_latency(0.01), &user(), &[EffectId::Latency], &rows)
+            .is_empty());
+    }
+
+    #[test]
+    fn a_real_latency_passes_the_identification_check() {
+        let world = with_latency(0.4);
+        assert_eq!(identified(&world, &world), Vec::new());
     }
 }

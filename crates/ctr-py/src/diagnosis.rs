@@ -423,6 +423,7 @@ pub fn diagnose(
         },
         threads: threads_opt(threads)?,
         clearance_table: None,
+        ..Default::default()
     };
     fit_report(py, robot, recording, |model, rec| {
         ctr_diagnosis::diagnose(model, rec, &options)
