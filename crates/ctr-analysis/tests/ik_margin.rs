@@ -429,6 +429,7 @@ fn the_floor_is_checked_when_the_solver_is_built() {
     // no table to start from
     let e = build(MIN_MARGIN, 0).unwrap_err();
     assert!(matches!(e, IkError::MinMargin { samples: 0, .. }), "{e:?}");
+    assert!(e.to_string().contains("seed_samples = 0"), "{e}");
     assert!(build(MIN_MARGIN, 64).is_ok());
 }
 

@@ -63,9 +63,11 @@ pub struct IkResult {
     pub iterations: u32,
     /// Starts tried (1 when the first reached).
     pub starts: u32,
-    /// The stability margin at `q` (`Solution::stability_margin` of the FK solved
-    /// cold there, dimensionless; NaN when the status is `FkFailed`). With
-    /// [`IkOptions::min_margin`] it is at least that.
+    /// The stability margin of the equilibrium `tip` is on (`Solution::stability_margin`
+    /// on the branch the steps followed; dimensionless; NaN when the status is
+    /// `FkFailed`). With [`IkOptions::min_margin`] it is settled (module doc, "Stability
+    /// margin") and at least `min_margin + MARGIN_SLACK`, and so is the margin of `q`
+    /// solved cold.
     pub stability_margin: f64,
     /// How it ended.
     pub status: IkStatus,
@@ -202,11 +204,7 @@ pub enum IkError {
     /// No point of the start table has the stability margin asked for
     /// ([`IkOptions::min_margin`]): the limits hold no joints that stable, as far as
     /// the table sees.
-    #[error(
-        "IK option min_margin = {min_margin}: none of the {samples} joint vectors sampled \
-         within the limits has a stability margin that large (the largest: {largest}); \
-         lower it, or widen the limits"
-    )]
+    #[error("{}", min_margin_words(*min_margin, *samples, *largest))]
     MinMargin {
         /// the margin asked for
         min_margin: f64,
@@ -215,6 +213,20 @@ pub enum IkError {
         /// the largest margin among them (NaN when there are none)
         largest: f64,
     },
+}
+
+fn min_margin_words(min_margin: f64, samples: usize, largest: f64) -> String {
+    if samples == 0 {
+        return format!(
+            "IK option min_margin = {min_margin} needs start points within it, and the start \
+             table is empty (seed_samples = 0)"
+        );
+    }
+    format!(
+        "IK option min_margin = {min_margin}: none of the {samples} joint vectors sampled \
+         within the limits has a stability margin that large (the largest: {largest}); \
+         lower it, or widen the limits"
+    )
 }
 
 fn check_option(
