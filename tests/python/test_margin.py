@@ -1,12 +1,14 @@
 """The stability margin from Python: `robot.fk(q, margin=True)` equals `ctr-cli fk
 --margin` bit for bit, and along a turn of the seed's robot with long transmissions it
-falls towards zero before the tip snaps."""
+falls towards zero before the tip snaps; `robot.ik(..., min_margin=)` never returns
+joints below the floor and equals `ctr-cli ik --min-margin` bit for bit."""
 
 import csv
 import re
 import subprocess
 
 import numpy as np
+import pytest
 
 import ctr_py
 from conftest import REPO
@@ -69,3 +71,77 @@ def test_margin_matches_the_cli_and_falls_before_a_snap(cli, tmp_path):
     # one row: a float
     _, _, m1 = robot.fk(q[0], margin=True)
     assert isinstance(m1, float) and m1 == margin[0]
+
+
+def pinned(tmp_path, feeds=(55.0, 95.0)):
+    """The long-transmission robot with both feeds pinned: a target fixes the relative
+    angle of the tubes, so its margin."""
+    path = long_transmissions(tmp_path)
+    text = path.read_text()
+    for s in feeds:
+        text += f"\n[[limits.tube]]\ns_mm = [{s}, {s}]\n"
+    path.write_text(text)
+    return path
+
+
+def test_ik_min_margin_keeps_the_margin_and_equals_the_cli(cli, tmp_path):
+    path = pinned(tmp_path)
+    robot = ctr_py.Robot.from_toml(str(path))
+    rng = np.random.default_rng(19)
+    rows = 60
+    # half the relative angles 13-20 deg from the opposed curvatures, where the margin
+    # falls before the pair snaps (below 0.4 from about 16 deg solved cold)
+    near = rng.choice([-1.0, 1.0], rows) * rng.uniform(13, 20, rows)
+    rel = np.where(np.arange(rows) % 2 == 0, near, rng.uniform(-180, 180, rows))
+    theta1 = rng.uniform(-90, 90, rows)
+    theta2 = (theta1 + rel + 180.0) % 360.0 - 180.0
+    q = np.column_stack([np.full(rows, 55.0), theta1, np.full(rows, 95.0), theta2])
+    # one row a call: each solved cold
+    made = [robot.fk(row, margin=True) for row in q]
+    tips = np.array([t for t, _, _ in made])
+    margin = np.array([m for _, _, m in made])
+
+    floor = 0.4
+    joints, residual, status = robot.ik(tips, cold=True, min_margin=floor)
+    for k, row in enumerate(joints):
+        _, _, m = robot.fk(row, margin=True)
+        assert m >= floor, (k, row, m)
+    below = margin < floor
+    comfortable = margin >= floor + 0.1
+    assert below.sum() >= 5 and comfortable.sum() >= rows // 3
+    assert set(status[below]) == {"unreachable_with_margin"}
+    assert np.all(residual[below] > 1e-4)
+    assert set(status[comfortable]) == {"reached"}
+    # without the floor those targets are reached, below it
+    free_q, _, free_status = robot.ik(tips, cold=True)
+    assert set(free_status) == {"reached"}
+    assert min(robot.fk(free_q[k], margin=True)[2] for k in np.flatnonzero(below)) < floor
+
+    # the CLI's --min-margin, to the last bit
+    targets = tmp_path / "targets.csv"
+    with targets.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["x_mm", "y_mm", "z_mm"])
+        w.writerows([[repr(float(v)) for v in t] for t in tips])
+    out = tmp_path / "joints.csv"
+    p = subprocess.run(
+        [str(cli), "ik", "--robot", str(path), "--targets", str(targets), "-o", str(out),
+         "--cold", "--min-margin", str(floor)],
+        capture_output=True, text=True, stdin=subprocess.DEVNULL,
+    )
+    assert p.returncode == 0, p.stderr
+    with out.open(newline="") as f:
+        written = list(csv.DictReader(f))
+    want = np.array([[float(r[c]) for c in robot.joint_columns] for r in written])
+    assert want.tobytes() == joints.tobytes()
+    assert [r["status"] for r in written] == list(status)
+
+
+def test_ik_min_margin_is_checked(tmp_path):
+    robot = ctr_py.Robot.from_toml(str(pinned(tmp_path)))
+    with pytest.raises(ctr_py.InputError, match=r"min_margin = NaN must be a finite number"):
+        robot.ik([0.0, 0.0, 100.0], min_margin=float("nan"))
+    with pytest.raises(ctr_py.InputError, match=r"min_margin = 100: none of the 256 joint vectors"):
+        robot.ik([0.0, 0.0, 100.0], min_margin=100.0)
+    with pytest.raises(TypeError):
+        robot.ik([0.0, 0.0, 100.0], min_margin="high")

@@ -52,10 +52,18 @@ within the core's ranges and the robot file's [limits]), the tip reached there
 reached_x_mm,reached_y_mm,reached_z_mm (for poses also reached_qw,...,reached_qz),
 residual_mm, its distance to the target (for poses also orientation_residual_deg), and
 status: reached, unreachable (no start came within the tolerance: the closest point
-found is written), iteration_limit or fk_failed. Input columns named like an output
-column (the joints of the fk run that made the tips, an earlier ik run's columns) are
-replaced by the output's own. `ctr-cli fk` reads the output as a joint file. Floats
-are written in shortest round-trip form.
+found is written), iteration_limit, fk_failed or unreachable_with_margin (not reached
+with --min-margin holding the solve back: the closest point found within the margin).
+Input columns named like an output column (the joints of the fk run that made the tips,
+an earlier ik run's columns) are replaced by the output's own. `ctr-cli fk` reads the
+output as a joint file. Floats are written in shortest round-trip form.
+
+Stability margin: with --min-margin M no joints written have a stability margin below
+M (the margin `fk --margin` writes; where the tubes are bistable, both the equilibrium
+the solve followed and the one a cold solve finds must clear it). Each step keeps the
+margin, linearised, above M, and a step whose solved margin falls below is refused; a
+start below M first raises it. Limits that hold no sampled joints that stable are
+refused (exit 2).
 
 Rows are a trajectory: each row starts from the joints of the row before (--cold: every
 row from the seed table, independently). To run in parallel the rows are cut into fixed
@@ -508,6 +516,13 @@ pub struct IkArgs {
     #[arg(long, value_parser = model_parser())]
     pub model: Option<ModelKind>,
 
+    /// Smallest stability margin of the joints written (dimensionless, as `fk --margin`
+    /// writes it: about 1 far from a snap, 0 at one). A constraint of every step: a
+    /// target reachable only less stable gets the closest point found within it, with
+    /// status unreachable_with_margin.
+    #[arg(long, value_name = "M", value_parser = parse_finite)]
+    pub min_margin: Option<f64>,
+
     /// Worker threads (default: all cores); the output does not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
@@ -517,6 +532,13 @@ fn parse_positive(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
         _ => Err(format!("{s:?} is not a positive number")),
+    }
+}
+
+fn parse_finite(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(format!("{s:?} is not a finite number")),
     }
 }
 

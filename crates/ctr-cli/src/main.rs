@@ -138,6 +138,7 @@ fn ik(args: IkArgs) -> Result<(), Failure> {
             orientation_tolerance_rad: args.orientation_tolerance_deg.to_radians(),
             max_iterations: args.max_iterations,
             restarts: args.restarts,
+            min_margin: args.min_margin,
             ..IkOptions::default()
         },
         position_only: args.position_only,

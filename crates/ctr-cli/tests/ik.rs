@@ -421,6 +421,8 @@ fn help_shows_an_example_and_the_options() {
             "--damping-feed",
             "--restarts",
             "--position-only",
+            "--min-margin",
+            "unreachable_with_margin",
         ] {
             assert!(text.contains(opt), "{opt}");
         }

@@ -88,11 +88,82 @@
 //! assert!(far.residual_mm > 300.0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! # Stability margin
+//!
+//! With [`IkOptions::min_margin`] `X` no iterate, and so no result, has a stability
+//! margin (the core's `Solution::stability_margin`: about 1 far from a snap, 0 at one)
+//! below `X`. It is a constraint of every step, not a filter of the results:
+//!
+//! ```text
+//! m(q + dq) ~ m(q) + grad m . dq >= level       one more row of the step's QP
+//! level = min(X + MARGIN_SLACK + backoff, m(q))   (dq = 0 stays feasible)
+//! ```
+//!
+//! `grad m` is central differences of FK solves warm-started from the iterate
+//! ([`MARGIN_STEP_MM`], [`MARGIN_STEP_RAD`]; zero for a joint its limits pin), and every
+//! margin is settled: read from a second solve at the same joints that starts on the
+//! solution (the core's is that of Newton's last iterate but one, up to 5e-5 off).
+//! A trial whose margin is below `X + MARGIN_SLACK` is refused like one that does not
+//! lower `E` (`lambda` grows), and `backoff` grows by what the linear model
+//! overestimated (it halves after each step taken). A start below the floor first takes
+//! steps that raise the margin, each aiming at a fraction of the deficit that halves
+//! when a step does not raise it; the table's starts are points within the floor
+//! ([`IkError::MinMargin`] when none is), and when no start ends within it (a `q0`
+//! below that could not be raised) one more starts from the nearest. Where the robot is
+//! bistable a cold FK (a row of `ctr-cli fk`) can land on another equilibrium than the
+//! one the steps followed: a start ends at its last iterate whose margin clears the
+//! floor solved cold as well. A target not reached whose last steps the margin shaped,
+//! or whose result is within [`MARGIN_ACTIVE_BAND`] of `X`, is
+//! [`IkStatus::UnreachableWithMargin`]: the closest point found within the floor.
+//!
+//! ```
+//! use ctr_analysis::ik::{Ik, IkOptions, IkStatus};
+//! use ctr_formats::{IkTarget, RobotSpec, TubeLimits};
+//! // the seed's robot with 100 mm longer transmissions: the pair snaps
+//! let mut spec = RobotSpec::from_toml_str(r#"
+//! [[tube]]
+//! outer_diameter_mm = 6.8
+//! inner_diameter_mm = 4.9
+//! length_mm = 224.0
+//! curved_length_mm = 74.0
+//! curvature_radius_mm = -97.0
+//! youngs_modulus_mpa = 150.0
+//! poisson_ratio = 0.41
+//! [[tube]]
+//! outer_diameter_mm = 4.5
+//! inner_diameter_mm = 3.3
+//! length_mm = 274.0
+//! curved_length_mm = 114.0
+//! curvature_radius_mm = 98.5
+//! youngs_modulus_mpa = 300.0
+//! poisson_ratio = 0.41
+//! "#, "robot.toml")?;
+//! // feeds pinned: only the rotations move
+//! let pin = |s: f64| TubeLimits { s_mm: Some([s, s]), ..Default::default() };
+//! spec.limits = Some(vec![pin(55.0), pin(95.0)]);
+//! let options = IkOptions { min_margin: Some(0.4), ..Default::default() };
+//! let mut ik = Ik::from_spec(&spec, options)?;
+//! // near the opposed curvatures the margin is low: that tip is refused...
+//! let low = ik.from_file_units(&[55.0, 0.0, 95.0, 18.0]);
+//! assert!(ik.stability_margin(&low).unwrap() < 0.4);
+//! let tip = ik.fk(&low).unwrap().position;
+//! let r = ik.solve(&IkTarget::position(tip.into()), None);
+//! assert_eq!(r.status, IkStatus::UnreachableWithMargin);
+//! assert!(r.stability_margin >= 0.4 && ik.stability_margin(&r.q).unwrap() >= 0.4);
+//! // ... and one farther from it reached
+//! let calm = ik.from_file_units(&[55.0, 0.0, 95.0, 90.0]);
+//! let tip = ik.fk(&calm).unwrap().position;
+//! assert_eq!(ik.solve(&IkTarget::position(tip.into()), None).status, IkStatus::Reached);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
+mod margin;
 mod options;
 mod qp;
 mod step;
 
+pub use margin::{MARGIN_ACTIVE_BAND, MARGIN_SLACK, MARGIN_STEP_MM, MARGIN_STEP_RAD};
 pub use options::{IkError, IkOptions, IkResult, IkStatus};
 use step::{nan_frame, Attempt, End};
 
@@ -113,8 +184,8 @@ pub struct Ik {
     limits: JointLimits,
     qp: StepQp,
     options: IkOptions,
-    /// start table: joints and tip
-    samples: Vec<(Vec<f64>, Frame<f64>)>,
+    /// start table: joints, tip and stability margin
+    samples: Vec<(Vec<f64>, Frame<f64>, f64)>,
 }
 
 impl Clone for Ik {
@@ -202,7 +273,10 @@ impl Ik {
         options.check()?;
         let lengths: Vec<f64> = robot.tube_params().iter().map(|p| p.length_mm).collect();
         let limits = JointLimits::new(&lengths, limits)?;
-        let fk = rows.tip_fk();
+        let mut fk = rows.tip_fk();
+        if options.min_margin.is_some() {
+            fk.settle_margins();
+        }
         let mut rng = Rng::new(options.seed);
         let n = 2 * limits.n_tubes();
         let mut samples = Vec::with_capacity(options.seed_samples);
@@ -213,13 +287,23 @@ impl Ik {
                 let u: Vec<f64> = (0..n).map(|_| rng.uniform()).collect();
                 limits.point(&u)
             };
-            if let Some(tip) = fk.cold(&q) {
-                samples.push((q, tip));
+            if let Some(s) = fk.cold(&q) {
+                samples.push((q, s.tip, s.margin));
+            }
+        }
+        if let Some(x) = options.min_margin {
+            let floor = margin::Guard::new(x, 0.0).floor;
+            if !samples.iter().any(|s| s.2 >= floor) {
+                return Err(IkError::MinMargin {
+                    min_margin: x,
+                    samples: samples.len(),
+                    largest: samples.iter().map(|s| s.2).fold(f64::NAN, f64::max),
+                });
             }
         }
         Ok(Ik {
             fk,
-            qp: StepQp::new(&limits),
+            qp: StepQp::new(&limits, options.min_margin.is_some()),
             limits,
             options,
             samples,
@@ -306,7 +390,31 @@ impl Ik {
     /// when the joints are outside the core's ranges or the solve does not converge.
     pub fn fk(&self, q: &[f64]) -> Option<Frame<f64>> {
         assert_eq!(q.len(), 2 * self.n_tubes());
-        self.fk.cold(q)
+        self.fk.cold(q).map(|s| s.tip)
+    }
+
+    /// The stability margin at `q` (mm, rad), solved cold as [`fk`](Self::fk) solves
+    /// it and settled as the IK's with a margin floor ([`IkOptions::min_margin`]:
+    /// of the shooting Jacobian at the solution itself); `Solution::stability_margin`:
+    /// dimensionless, about 1 far from a snap, 0 at one. `None` where the FK does not
+    /// converge.
+    ///
+    /// # Panics
+    /// If `q` does not have `2 n` values.
+    ///
+    /// ```
+    /// use ctr_analysis::ik::{Ik, IkOptions};
+    /// use ctr_core::{Model, TubeParams};
+    /// let t = TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // one tube
+    /// let robot = ctr_formats::AnyRobot::new(&[t]).unwrap();
+    /// let ik = Ik::new(&robot, Model::Torsion, None, IkOptions::default()).unwrap();
+    /// assert_eq!(ik.stability_margin(&[50.0, 0.3]), Some(1.0)); // nothing to snap
+    /// ```
+    pub fn stability_margin(&self, q: &[f64]) -> Option<f64> {
+        assert_eq!(q.len(), 2 * self.n_tubes());
+        let mut fk = self.fk.boxed_clone();
+        fk.settle_margins();
+        fk.cold(q).map(|s| s.margin)
     }
 
     /// Solves for `target` from `q0` (mm, rad; projected onto the limits), or cold
@@ -357,31 +465,45 @@ impl Ik {
             let a = self.run(target, start, observer);
             iterations += a.iterations;
             let reached = a.end == End::Reached;
-            let better = reached
-                || match &best {
-                    None => true,
-                    Some(b) => {
-                        a.end != End::FkFailed && (b.end == End::FkFailed || a.cost < b.cost)
-                    }
-                };
-            if better {
+            if best.as_ref().is_none_or(|b| better(&a, b)) {
                 best = Some(a);
             }
             if reached {
                 break;
             }
         }
-        let a = best.unwrap_or_else(|| Attempt {
+        if best.as_ref().is_some_and(|b| !b.feasible) {
+            // with a margin floor and no start within it (a warm start below it that
+            // could not be raised): the table's points are within it, and so is the
+            // first iterate of a start from one of them
+            let nearest = self.cold_starts(target, 1).into_iter().next();
+            if let Some(q) = nearest {
+                starts += 1;
+                let a = self.run(target, q, observer);
+                iterations += a.iterations;
+                if best.as_ref().is_none_or(|b| better(&a, b)) {
+                    best = Some(a);
+                }
+            }
+        }
+        let a = best.filter(|b| b.feasible).unwrap_or_else(|| Attempt {
             q: self.limits.center(),
             tip: nan_frame(),
             cost: f64::INFINITY,
             iterations: 0,
             end: End::FkFailed,
+            margin: f64::NAN,
+            feasible: false,
+            held: false,
         });
         let (pos, ori) = self.residuals(target, &a.tip);
+        let margin_active = self.options.min_margin.is_some_and(|x| {
+            a.end != End::FkFailed && (a.held || a.margin - x <= MARGIN_ACTIVE_BAND)
+        });
         IkResult {
             status: match a.end {
                 End::Reached => IkStatus::Reached,
+                _ if margin_active => IkStatus::UnreachableWithMargin,
                 End::Stalled => IkStatus::Unreachable,
                 End::IterationLimit => IkStatus::IterationLimit,
                 End::FkFailed => IkStatus::FkFailed,
@@ -392,6 +514,7 @@ impl Ik {
             orientation_residual_rad: ori,
             iterations,
             starts: starts as u32,
+            stability_margin: a.margin,
         }
     }
 
@@ -409,8 +532,9 @@ impl Ik {
             .collect()
     }
 
-    /// The start table's joint vectors nearest the target first (at most `count`), or
-    /// without a table the middle of the limits and seeded random points.
+    /// The start table's joint vectors nearest the target first (at most `count`; with
+    /// a margin floor, those within it), or without a table the middle of the limits and
+    /// seeded random points.
     fn cold_starts(&self, target: &IkTarget, count: usize) -> Vec<Vec<f64>> {
         if self.samples.is_empty() {
             let mut rng = Rng::new(self.options.seed);
@@ -426,11 +550,17 @@ impl Ik {
                 })
                 .collect();
         }
+        // with a margin floor, only the points within it
+        let floor = self
+            .options
+            .min_margin
+            .map_or(f64::NEG_INFINITY, |x| margin::Guard::new(x, 0.0).floor);
         let mut order: Vec<(f64, usize)> = self
             .samples
             .iter()
             .enumerate()
-            .map(|(k, (_, tip))| (self.error(target, tip).1, k))
+            .filter(|(_, s)| s.2 >= floor)
+            .map(|(k, (_, tip, _))| (self.error(target, tip).1, k))
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         order
@@ -439,4 +569,13 @@ impl Ik {
             .map(|&(_, k)| self.samples[k].0.clone())
             .collect()
     }
+}
+
+/// Whether attempt `a` is a better result than `b`: one within the margin floor beats
+/// one below it; then one that reached; then the closer one that solved.
+fn better(a: &Attempt, b: &Attempt) -> bool {
+    if a.feasible != b.feasible {
+        return a.feasible;
+    }
+    a.end == End::Reached || (a.end != End::FkFailed && (b.end == End::FkFailed || a.cost < b.cost))
 }

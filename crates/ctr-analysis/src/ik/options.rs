@@ -19,17 +19,29 @@ pub enum IkStatus {
     IterationLimit,
     /// The forward kinematics could not be solved at any start point.
     FkFailed,
+    /// Not reached, and the stability margin held the solve back
+    /// ([`IkOptions::min_margin`]): the last steps were limited by it, or the point
+    /// found is within [`MARGIN_ACTIVE_BAND`](super::MARGIN_ACTIVE_BAND) of it. `q` is the closest point found
+    /// whose margin is at least `min_margin`; the target may be reachable on a less
+    /// stable configuration.
+    UnreachableWithMargin,
 }
 
 impl IkStatus {
     /// Lower-case name for files and messages: `reached`, `unreachable`,
-    /// `iteration_limit`, `fk_failed`.
+    /// `iteration_limit`, `fk_failed`, `unreachable_with_margin`.
+    ///
+    /// ```
+    /// use ctr_analysis::ik::IkStatus;
+    /// assert_eq!(IkStatus::UnreachableWithMargin.name(), "unreachable_with_margin");
+    /// ```
     pub fn name(self) -> &'static str {
         match self {
             IkStatus::Reached => "reached",
             IkStatus::Unreachable => "unreachable",
             IkStatus::IterationLimit => "iteration_limit",
             IkStatus::FkFailed => "fk_failed",
+            IkStatus::UnreachableWithMargin => "unreachable_with_margin",
         }
     }
 }
@@ -51,6 +63,12 @@ pub struct IkResult {
     pub iterations: u32,
     /// Starts tried (1 when the first reached).
     pub starts: u32,
+    /// The stability margin of the equilibrium `tip` is on (`Solution::stability_margin`
+    /// on the branch the steps followed; dimensionless; NaN when the status is
+    /// `FkFailed`). With [`IkOptions::min_margin`] it is settled (module doc, "Stability
+    /// margin") and at least `min_margin + MARGIN_SLACK`, and so is the margin of `q`
+    /// solved cold.
+    pub stability_margin: f64,
     /// How it ended.
     pub status: IkStatus,
 }
@@ -86,6 +104,11 @@ pub struct IkOptions {
     pub seed: u64,
     /// Points in the start table (drawn inside the limits when the [`Ik`] is built).
     pub seed_samples: usize,
+    /// Smallest stability margin allowed (dimensionless, the scale of
+    /// `Solution::stability_margin`: about 1 far from a snap, 0 at one): no iterate, and
+    /// so no result, has a smaller one. A constraint of every step (module doc,
+    /// "Stability margin"), not a filter of the results. `None`: unconstrained.
+    pub min_margin: Option<f64>,
 }
 
 impl IkOptions {
@@ -130,6 +153,9 @@ impl IkOptions {
             o.orientation_tolerance_rad > 0.0,
             "> 0",
         )?;
+        if let Some(m) = o.min_margin {
+            check_option("min_margin", m, true, "a finite number")?;
+        }
         Ok(())
     }
 }
@@ -150,6 +176,7 @@ impl Default for IkOptions {
             restarts: 8,
             seed: 0x5eed,
             seed_samples: 256,
+            min_margin: None,
         }
     }
 }
@@ -174,6 +201,32 @@ pub enum IkError {
         /// what it must be
         wanted: &'static str,
     },
+    /// No point of the start table has the stability margin asked for
+    /// ([`IkOptions::min_margin`]): the limits hold no joints that stable, as far as
+    /// the table sees.
+    #[error("{}", min_margin_words(*min_margin, *samples, *largest))]
+    MinMargin {
+        /// the margin asked for
+        min_margin: f64,
+        /// joint vectors of the start table solved
+        samples: usize,
+        /// the largest margin among them (NaN when there are none)
+        largest: f64,
+    },
+}
+
+fn min_margin_words(min_margin: f64, samples: usize, largest: f64) -> String {
+    if samples == 0 {
+        return format!(
+            "IK option min_margin = {min_margin} needs start points within it, and the start \
+             table is empty (seed_samples = 0)"
+        );
+    }
+    format!(
+        "IK option min_margin = {min_margin}: none of the {samples} joint vectors sampled \
+         within the limits has a stability margin that large (the largest: {largest}); \
+         lower it, or widen the limits"
+    )
 }
 
 fn check_option(

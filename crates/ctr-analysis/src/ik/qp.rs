@@ -3,11 +3,12 @@
 //! ```text
 //! minimize   1/2 dq^T H dq - g^T dq
 //! subject to lo <= a_r . (q + dq) <= hi   for every limit row r
+//!            a_m . dq <= b_m                  the linearised stability margin (optional)
 //! ```
 //!
 //! solved with clarabel. One solver is built on the first constrained step and then
-//! reused (presolve off; `update_P`, `update_q`, `update_b`; the constraint matrix never
-//! changes), which costs about 20 us a step instead of about 30 us and a hundred
+//! reused (presolve off; `update_P`, `update_q`, `update_b`; the constraint matrix
+//! changes only in the margin's row, `update_A`, its sparsity never), which costs about 20 us a step instead of about 30 us and a hundred
 //! allocations for a fresh one. The caller tries the unconstrained minimizer first
 //! (`H dq = g`) and only comes here when it leaves the limits: when it stays inside,
 //! it is the QP's solution.
@@ -38,6 +39,9 @@ pub(crate) struct StepQp {
     cons: Vec<(usize, Side)>,
     n_eq: usize,
     a: CscMatrix<f64>,
+    /// with a margin row (the last row): where its entry of each column sits in
+    /// `a.nzval`
+    margin_entries: Option<Vec<usize>>,
     solver: Option<DefaultSolver<f64>>,
     p_values: Vec<f64>,
     q_values: Vec<f64>,
@@ -65,6 +69,7 @@ impl Clone for StepQp {
             cons: self.cons.clone(),
             n_eq: self.n_eq,
             a: self.a.clone(),
+            margin_entries: self.margin_entries.clone(),
             solver: None,
             p_values: self.p_values.clone(),
             q_values: self.q_values.clone(),
@@ -75,7 +80,8 @@ impl Clone for StepQp {
 }
 
 impl StepQp {
-    pub fn new(limits: &JointLimits) -> Self {
+    /// The QP of `limits`, with a last row for the margin when `margin_row`.
+    pub fn new(limits: &JointLimits, margin_row: bool) -> Self {
         let n = 2 * limits.n_tubes();
         let rows = limits.rows();
         let mut cons = Vec::new();
@@ -105,14 +111,26 @@ impl StepQp {
                 v.push(sign * a);
             }
         }
-        let a = CscMatrix::new_from_triplets(cons.len(), n, ri, ci, v);
+        let n_rows = cons.len() + usize::from(margin_row);
+        if margin_row {
+            // a structural entry in every column (its values change each step)
+            for j in 0..n {
+                ri.push(cons.len());
+                ci.push(j);
+                v.push(1.0);
+            }
+        }
+        let a = CscMatrix::new_from_triplets(n_rows, n, ri, ci, v);
+        // the margin row is the last row: the last entry of each column
+        let margin_entries = margin_row.then(|| (0..n).map(|j| a.colptr[j + 1] - 1).collect());
         StepQp {
             n,
             rows,
             n_eq,
-            b_values: vec![0.0; cons.len()],
+            b_values: vec![0.0; n_rows],
             cons,
             a,
+            margin_entries,
             solver: None,
             p_values: vec![0.0; n * (n + 1) / 2],
             q_values: vec![0.0; n],
@@ -120,12 +138,16 @@ impl StepQp {
         }
     }
 
-    /// The constrained step from `q` (the leading `2 n` block of `h` and `g`), or `None` if clarabel does not solve it.
+    /// The constrained step from `q` (the leading `2 n` block of `h` and `g`), with the
+    /// margin's row `a . dq <= b` when the QP has one (`margin`; ignored otherwise, and
+    /// `0 <= 0` when missing), or `None` if clarabel does not solve it (also when the
+    /// margin's row cannot be met within the limits).
     pub fn step(
         &mut self,
         h: &SMatrix<f64, MAX_JOINTS, MAX_JOINTS>,
         g: &SVector<f64, MAX_JOINTS>,
         q: &[f64],
+        margin: Option<(&SVector<f64, MAX_JOINTS>, f64)>,
     ) -> Option<Vec<f64>> {
         let n = self.n;
         let mut k = 0;
@@ -145,11 +167,21 @@ impl StepQp {
                 Side::Lower => aq - row.lo,
             };
         }
+        if let Some(entries) = &self.margin_entries {
+            let (row, b) = margin.map_or((None, 0.0), |(a, b)| (Some(a), b));
+            for (j, &k) in entries.iter().enumerate() {
+                self.a.nzval[k] = row.map_or(0.0, |a| a[j]);
+            }
+            self.b_values[self.cons.len()] = b;
+        }
         self.solves += 1;
         match &mut self.solver {
             Some(s) => {
                 s.update_P(&self.p_values).ok()?;
                 s.update_q(&self.q_values).ok()?;
+                if self.margin_entries.is_some() {
+                    s.update_A(&self.a.nzval).ok()?;
+                }
                 s.update_b(&self.b_values).ok()?;
             }
             None => {
@@ -160,9 +192,9 @@ impl StepQp {
                 if self.n_eq > 0 {
                     cones.push(SupportedConeT::ZeroConeT(self.n_eq));
                 }
-                if self.cons.len() > self.n_eq {
+                if self.b_values.len() > self.n_eq {
                     cones.push(SupportedConeT::NonnegativeConeT(
-                        self.cons.len() - self.n_eq,
+                        self.b_values.len() - self.n_eq,
                     ));
                 }
                 let settings = DefaultSettingsBuilder::default()

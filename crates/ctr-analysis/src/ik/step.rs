@@ -2,6 +2,7 @@
 //! doc](super)): the weighted error, the damped step as a QP within the limits, the
 //! gain-ratio rule for `lambda`, and when a start ends.
 
+use super::margin::{self, Guard};
 use super::{Ik, IkTarget};
 use crate::model::{log_so3, tip_jacobian, Jacobian, MAX_JOINTS};
 use ctr_core::Frame;
@@ -50,6 +51,12 @@ pub(super) struct Attempt {
     pub cost: f64,
     pub iterations: u32,
     pub end: End,
+    /// the margin at `q` on the branch the steps followed
+    pub margin: f64,
+    /// without a margin floor always; with one, whether `q` keeps it
+    pub feasible: bool,
+    /// the margin shaped the last steps
+    pub held: bool,
 }
 
 impl Ik {
@@ -102,7 +109,8 @@ impl Ik {
             && ori.is_none_or(|a| a <= self.options.orientation_tolerance_rad)
     }
 
-    /// One Levenberg-Marquardt run from `q` (inside the limits).
+    /// One Levenberg-Marquardt run from `q` (inside the limits); with a margin floor,
+    /// every iterate taken keeps it (restoring it first if the start is below).
     pub(super) fn run(
         &mut self,
         target: &IkTarget,
@@ -114,17 +122,29 @@ impl Ik {
         let w = self.weights(target);
         self.fk.reset();
         observer(&q);
-        let Some(mut tip) = self.fk.trial(&q) else {
+        let Some(first) = self.fk.trial(&q) else {
             return Attempt {
                 q,
                 tip: nan_frame(),
                 cost: f64::INFINITY,
                 iterations: 0,
                 end: End::FkFailed,
+                margin: f64::NAN,
+                // without a margin floor every point is within it
+                feasible: o.min_margin.is_none(),
+                held: false,
             };
         };
         self.fk.accept();
+        let mut tip = first.tip;
+        let mut margin = first.margin;
+        let mut guard = o.min_margin.map(|x| Guard::new(x, margin));
         let (mut e, mut cost) = self.error(target, &tip);
+        // the iterates within the margin, for the check of the result (`settle`)
+        let mut kept: Vec<Kept> = Vec::new();
+        if guard.is_some_and(|g| g.allows(margin)) {
+            kept.push(Kept::new(&q, tip, cost, margin));
+        }
         let mut lambda = o.initial_lambda;
         let mut nu = 2.0;
         let mut jac = Jacobian::zeros();
@@ -134,7 +154,8 @@ impl Ik {
         let mut stalls = 0;
         let mut iterations = 0;
         let end = loop {
-            if self.reached(target, &tip) {
+            let restoring = guard.is_some_and(|g| g.restoring());
+            if !restoring && self.reached(target, &tip) {
                 break End::Reached;
             }
             if iterations >= o.max_iterations {
@@ -150,6 +171,9 @@ impl Ik {
                 a = jw * jac;
                 g = jw * e;
                 fresh = true;
+                if let Some(gd) = &mut guard {
+                    margin::gradient(&*self.fk, &self.limits, &q, gd.margin, &mut gd.grad);
+                }
                 if !(a.iter().all(|v| v.is_finite()) && g.iter().all(|v| v.is_finite())) {
                     break End::Stalled;
                 }
@@ -177,24 +201,40 @@ impl Ik {
             }
             // the unconstrained minimizer is the QP's solution when it stays inside
             let free = h.cholesky().map(|c| c.solve(&g));
-            let inside = free.as_ref().is_some_and(|dq| {
-                let trial: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + b).collect();
-                self.limits.admits(&trial)
-            });
+            let cut = match (&free, &guard) {
+                (Some(dq), Some(gd)) => !gd.admits(dq),
+                _ => false,
+            };
+            let inside = !cut
+                && free.as_ref().is_some_and(|dq| {
+                    let trial: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + b).collect();
+                    self.limits.admits(&trial)
+                });
+            let row = guard.as_ref().map(Guard::row);
             let dq = match (free, inside) {
                 (Some(dq), true) => dq,
                 _ => match self
                     .qp
-                    .step(&h, &g, &q)
+                    .step(&h, &g, &q, row.as_ref().map(|(a, b)| (a, *b)))
                     .map(|dq| Joint::from_fn(|k, _| if k < n { dq[k] } else { 0.0 }))
                 {
-                    // dq = 0 is feasible with model value 0: a solution must not be worse
+                    // dq = 0 is feasible with model value 0: a solution must not be
+                    // worse (while restoring it is not feasible)
                     Some(dq)
-                        if 0.5 * dq.dot(&(h * dq)) - g.dot(&dq) <= 1e-12 * g.norm() * dq.norm() =>
+                        if restoring
+                            || 0.5 * dq.dot(&(h * dq)) - g.dot(&dq)
+                                <= 1e-12 * g.norm() * dq.norm() =>
                     {
                         dq
                     }
                     _ => {
+                        if restoring {
+                            // no step raises the margin that far: aim lower
+                            if guard.as_mut().is_some_and(Guard::no_step) {
+                                continue;
+                            }
+                            break End::Stalled;
+                        }
                         // clarabel failed: damp harder, as for a refused step
                         if !damp_harder(o.adaptive_damping, &mut lambda, &mut nu) {
                             break End::Stalled;
@@ -203,6 +243,9 @@ impl Ik {
                     }
                 },
             };
+            if let Some(gd) = &mut guard {
+                gd.held = cut;
+            }
             let mut q_new: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + b).collect();
             self.limits.project(&mut q_new);
             let moved = q
@@ -225,11 +268,20 @@ impl Ik {
             }
             observer(&q_new);
             let trial = self.fk.trial(&q_new);
+            // the margin of a trial refused for it
+            let mut low = None;
             let accepted = match trial {
                 None => None,
                 Some(t) => {
-                    let (e_new, cost_new) = self.error(target, &t);
-                    (cost_new < cost || !o.adaptive_damping).then_some((t, e_new, cost_new))
+                    let (e_new, cost_new) = self.error(target, &t.tip);
+                    match &guard {
+                        Some(gd) if !gd.accepts(t.margin) => {
+                            low = Some(t.margin);
+                            None
+                        }
+                        _ => (restoring || cost_new < cost || !o.adaptive_damping)
+                            .then_some((t, e_new, cost_new)),
+                    }
                 }
             };
             match accepted {
@@ -243,11 +295,22 @@ impl Ik {
                     };
                     let progress = (cost - cost_new) / cost;
                     q = q_new;
-                    tip = t;
+                    tip = t.tip;
+                    margin = t.margin;
                     e = e_new;
                     cost = cost_new;
                     self.fk.accept();
                     fresh = false;
+                    if let Some(gd) = &mut guard {
+                        gd.took(margin);
+                        if gd.allows(margin) {
+                            kept.push(Kept::new(&q, tip, cost, margin));
+                        }
+                    }
+                    if restoring {
+                        // steps up to the margin: no progress rule, lambda as it was
+                        continue;
+                    }
                     if o.adaptive_damping {
                         lambda = (lambda
                             * (1.0_f64 / 3.0).max(1.0 - (2.0 * rho - 1.0_f64).powi(3)))
@@ -264,23 +327,80 @@ impl Ik {
                     }
                 }
                 None => {
+                    if let (Some(m), Some(gd)) = (low, &mut guard) {
+                        if !gd.refused(&dq, m) {
+                            break End::Stalled;
+                        }
+                    }
                     if !damp_harder(o.adaptive_damping, &mut lambda, &mut nu) {
                         break End::Stalled;
                     }
                 }
             }
         };
-        let end = if end != End::Reached && self.reached(target, &tip) {
-            End::Reached
-        } else {
-            end
-        };
-        Attempt {
+        let mut attempt = Attempt {
             q,
             tip,
             cost,
             iterations,
             end,
+            margin,
+            feasible: true,
+            held: false,
+        };
+        if let Some(gd) = guard {
+            attempt.held = gd.held;
+            self.settle(&mut attempt, &kept, gd.floor);
+        }
+        if attempt.end != End::Reached && attempt.feasible && self.reached(target, &attempt.tip) {
+            attempt.end = End::Reached;
+        }
+        attempt
+    }
+
+    /// With a margin floor: the attempt ends at its last iterate whose margin, solved
+    /// cold as well (as a row of `ctr-cli fk` is), clears `floor` (the cold solve can
+    /// land on another branch than the one the steps followed); `feasible` false when
+    /// none does.
+    fn settle(&mut self, attempt: &mut Attempt, kept: &[Kept], floor: f64) {
+        for k in kept.iter().rev() {
+            let cold = self.fk.cold(&k.q).map_or(f64::NAN, |s| s.margin);
+            if cold >= floor {
+                if k.q != attempt.q {
+                    attempt.q.clone_from(&k.q);
+                    attempt.tip = k.tip;
+                    attempt.cost = k.cost;
+                    attempt.margin = k.margin;
+                    attempt.held = true;
+                    if attempt.end == End::Reached {
+                        attempt.end = End::Stalled;
+                    }
+                }
+                return;
+            }
+        }
+        attempt.feasible = false;
+        if attempt.end == End::Reached {
+            attempt.end = End::Stalled;
+        }
+    }
+}
+
+/// An iterate kept for [`Ik::settle`].
+struct Kept {
+    q: Vec<f64>,
+    tip: Frame<f64>,
+    cost: f64,
+    margin: f64,
+}
+
+impl Kept {
+    fn new(q: &[f64], tip: Frame<f64>, cost: f64, margin: f64) -> Self {
+        Kept {
+            q: q.to_vec(),
+            tip,
+            cost,
+            margin,
         }
     }
 }

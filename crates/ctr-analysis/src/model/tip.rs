@@ -35,6 +35,15 @@ pub const FD_STEP_MM: f64 = 1e-6;
 /// Finite-difference step on rotations, rad.
 pub const FD_STEP_RAD: f64 = 1e-6;
 
+/// One solve as the IK uses it: the tip and the stability margin there.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Solved {
+    /// The tip frame, as measured.
+    pub tip: Frame<f64>,
+    /// The core's signed stability margin (`Solution::stability_margin`, dimensionless).
+    pub margin: f64,
+}
+
 /// Tip forward kinematics of one robot on joint slices `s_1, theta_1, ...` (mm, rad).
 pub(crate) trait TipFk: Send + Sync {
     /// The number of tubes.
@@ -43,19 +52,22 @@ pub(crate) trait TipFk: Send + Sync {
     fn reset(&mut self);
     /// Solves `q` warm-started from the current iterate and keeps the result as the
     /// pending trial; `None` when the solve does not converge.
-    fn trial(&mut self, q: &[f64]) -> Option<Frame<f64>>;
+    fn trial(&mut self, q: &[f64]) -> Option<Solved>;
     /// Makes the pending trial the current iterate.
     fn accept(&mut self);
     /// Solves `q` warm-started from the current iterate without remembering it.
-    fn probe(&self, q: &[f64]) -> Option<Frame<f64>>;
+    fn probe(&self, q: &[f64]) -> Option<Solved>;
     /// Solves `q` cold.
-    fn cold(&self, q: &[f64]) -> Option<Frame<f64>>;
+    fn cold(&self, q: &[f64]) -> Option<Solved>;
     /// A copy with the same warm-start memory.
     fn boxed_clone(&self) -> Box<dyn TipFk>;
     /// The analytic tip Jacobian at `q` (the current iterate), written into the first
     /// `2 n` columns of `jac` as [`tip_jacobian`] lays them out; `false` (and `jac`
     /// untouched) where the model has none.
     fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool;
+    /// From now on every solve's margin is settled: read from a second solve at the
+    /// same joints, warm from the first (see [`CoreFk`]).
+    fn settle_margins(&mut self);
 }
 
 /// [`TipFk`] on the row model's mechanics ([`crate::model`]): the robot file's static
@@ -69,6 +81,8 @@ pub(crate) struct CoreFk<const N: usize> {
     offsets: Option<[f64; MAX_JOINTS]>,
     current: Solver<f64, N>,
     pending: Solver<f64, N>,
+    /// margins from a second solve at the same joints ([`TipFk::settle_margins`])
+    settled: bool,
 }
 
 impl<const N: usize> CoreFk<N> {
@@ -85,6 +99,7 @@ impl<const N: usize> CoreFk<N> {
                 .then(|| core::array::from_fn(|i| offsets.get(i).copied().unwrap_or(0.0))),
             current: s,
             pending: s,
+            settled: false,
         }
     }
 
@@ -127,16 +142,34 @@ impl<const N: usize> CoreFk<N> {
             && sol.tip.position.iter().all(|v| v.is_finite())
     }
 
-    fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Frame<f64>> {
+    /// The tip and margin at `q`. The core's margin is that of the shooting Jacobian at
+    /// Newton's last iterate but one, a step of up to the step tolerance from the
+    /// solution (up to about 4e-5 off on the long-transmission robot); when `settled`, a
+    /// second solve at the same joints starts on the solution itself (the warm guess
+    /// does not move when the joints do not) and its margin is that of the solution's
+    /// own Jacobian.
+    fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Solved> {
         let ok = Self::accepted;
-        let sol = self.solve_once(solver, q)?;
-        if ok(&sol) {
-            return Some(sol.tip);
+        let mut sol = self.solve_once(solver, q)?;
+        if !ok(&sol) {
+            // a warm start from far away can fail where a cold one does not
+            solver.reset();
+            sol = self.solve_once(solver, q)?;
+            if !ok(&sol) {
+                return None;
+            }
         }
-        // a warm start from far away can fail where a cold one does not
-        solver.reset();
-        let sol = self.solve_once(solver, q)?;
-        ok(&sol).then_some(sol.tip)
+        let mut margin = sol.stability_margin;
+        if self.settled {
+            margin = self
+                .solve_once(solver, q)
+                .filter(ok)
+                .map_or(margin, |again| again.stability_margin);
+        }
+        Some(Solved {
+            tip: sol.tip,
+            margin,
+        })
     }
 }
 
@@ -150,7 +183,7 @@ impl<const N: usize> TipFk for CoreFk<N> {
         self.pending.reset();
     }
 
-    fn trial(&mut self, q: &[f64]) -> Option<Frame<f64>> {
+    fn trial(&mut self, q: &[f64]) -> Option<Solved> {
         let mut s = self.current;
         let tip = self.solve(&mut s, q);
         self.pending = s;
@@ -161,12 +194,12 @@ impl<const N: usize> TipFk for CoreFk<N> {
         self.current = self.pending;
     }
 
-    fn probe(&self, q: &[f64]) -> Option<Frame<f64>> {
+    fn probe(&self, q: &[f64]) -> Option<Solved> {
         let mut s = self.current;
         self.solve(&mut s, q)
     }
 
-    fn cold(&self, q: &[f64]) -> Option<Frame<f64>> {
+    fn cold(&self, q: &[f64]) -> Option<Solved> {
         let mut s = self.current;
         s.reset();
         self.solve(&mut s, q)
@@ -174,6 +207,10 @@ impl<const N: usize> TipFk for CoreFk<N> {
 
     fn boxed_clone(&self) -> Box<dyn TipFk> {
         Box::new(*self)
+    }
+
+    fn settle_margins(&mut self) {
+        self.settled = true;
     }
 
     fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool {
@@ -258,7 +295,7 @@ pub(crate) fn tip_jacobian(
         if !limits.admits(&probe_q) {
             return None;
         }
-        fk.probe(&probe_q)
+        fk.probe(&probe_q).map(|s| s.tip)
     };
     for j in 0..n {
         let h = if j % 2 == 0 { FD_STEP_MM } else { FD_STEP_RAD };
@@ -292,7 +329,7 @@ pub(crate) fn file_jacobian(
 ) -> Option<Vec<[f64; 6]>> {
     let q = limits.from_file_units(joints);
     fk.reset();
-    let tip = fk.trial(&q)?;
+    let tip = fk.trial(&q)?.tip;
     fk.accept();
     let mut jac = Jacobian::zeros();
     tip_jacobian(&*fk, limits, &q, &tip, &mut jac);
@@ -321,16 +358,16 @@ mod tests {
         fn reset(&mut self) {
             self.0.reset()
         }
-        fn trial(&mut self, q: &[f64]) -> Option<Frame<f64>> {
+        fn trial(&mut self, q: &[f64]) -> Option<Solved> {
             self.0.trial(q)
         }
         fn accept(&mut self) {
             self.0.accept()
         }
-        fn probe(&self, q: &[f64]) -> Option<Frame<f64>> {
+        fn probe(&self, q: &[f64]) -> Option<Solved> {
             self.0.probe(q)
         }
-        fn cold(&self, q: &[f64]) -> Option<Frame<f64>> {
+        fn cold(&self, q: &[f64]) -> Option<Solved> {
             self.0.cold(q)
         }
         fn boxed_clone(&self) -> Box<dyn TipFk> {
@@ -338,6 +375,9 @@ mod tests {
         }
         fn jacobian(&self, _: &[f64], _: &mut Jacobian) -> bool {
             false
+        }
+        fn settle_margins(&mut self) {
+            self.0.settle_margins()
         }
     }
 
@@ -402,7 +442,7 @@ mod tests {
                 for lim in [&limits, &pinned] {
                     let mut analytic = core_fk(&e, model);
                     let mut fd = DifferencesOnly(analytic.boxed_clone());
-                    let tip = analytic.trial(&q).unwrap();
+                    let tip = analytic.trial(&q).unwrap().tip;
                     analytic.accept();
                     fd.trial(&q).unwrap();
                     fd.accept();

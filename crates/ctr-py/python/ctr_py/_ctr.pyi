@@ -239,6 +239,7 @@ class Robot:
         damping_rotation: float = 1e-4,
         restarts: int = 8,
         max_iterations: int = 100,
+        min_margin: Optional[float] = None,
         threads: int = 0,
     ) -> Tuple[F64, Union[F64, float], Union[npt.NDArray[np.str_], str]]:
         """Inverse kinematics: ``q, residual_mm, status = robot.ik(targets)``.
@@ -270,8 +271,18 @@ class Robot:
         distance from the tip to the target position in mm; and the status:
         ``"reached"`` (within ``tolerance_mm``, and ``orientation_tolerance_deg`` for a
         pose), ``"unreachable"`` (the closest point found, for a target outside the
-        workspace), ``"iteration_limit"`` or ``"fk_failed"``. An unreachable target is
+        workspace), ``"iteration_limit"``, ``"fk_failed"`` or
+        ``"unreachable_with_margin"`` (see ``min_margin``). An unreachable target is
         not an error.
+
+        ``min_margin`` (``ctr-cli ik --min-margin``): no joints returned have a
+        stability margin (the one ``fk(q, margin=True)`` returns; dimensionless, about
+        1 far from a snap, 0 at one) below it; where the tubes are bistable, neither
+        the equilibrium the solve followed nor the one a cold solve finds. It is a
+        constraint of every step: a target reachable only less stable gets the closest
+        point found within it, status ``"unreachable_with_margin"``. A value that is
+        not finite, or that no joints sampled within the limits reach, raises
+        :class:`~ctr_py.InputError`.
 
         Effects: the forward model inside the IK is the file's static model, as
         ``ctr-cli ik`` uses it: the joints found are the commanded ones (joint offsets

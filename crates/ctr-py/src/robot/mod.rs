@@ -356,6 +356,7 @@ impl Robot {
         damping_rotation = IkOptions::default().damping_rotation,
         restarts = None,
         max_iterations = None,
+        min_margin = None,
         threads = None,
     ))]
     fn ik<'py>(
@@ -374,6 +375,7 @@ impl Robot {
         damping_rotation: f64,
         restarts: Option<&Bound<'py, PyAny>>,
         max_iterations: Option<&Bound<'py, PyAny>>,
+        min_margin: Option<f64>,
         threads: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
@@ -403,6 +405,7 @@ impl Robot {
             orientation_tolerance_rad: orientation_tolerance_deg.to_radians(),
             max_iterations,
             restarts,
+            min_margin,
             ..IkOptions::default()
         };
         let t = arrays::read_rows(
