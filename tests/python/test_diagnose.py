@@ -258,8 +258,15 @@ def test_report_attributes_are_the_contract_fields(report):
     assert {"baseline", "findings", "final", "unexplained"} <= set(d)
     for key in ("baseline", "findings", "final", "unexplained", "noise", "split",
                 "located", "tried", "failed_rows", "explained", "uncertainty_method",
-                "identifiability", "correlated", "suggested_run"):
+                "identifiability", "correlated", "suggested_run", "stability"):
         assert getattr(report, key) == d[key], key
+    # the seed's robot stays far from a snap on this recording: no row marked
+    assert report.stability == {
+        "warn_margin": 0.05,
+        "nominal": {"near_snap": [], "unstable": []},
+        "fitted": {"near_snap": [], "unstable": []},
+        "outlier_lines_near_snap": [],
+    }
     # the recording is explained: no empirical term, in the JSON or here
     assert report.explained is True and "empirical" not in d and report.empirical is None
     f = report.findings[0]
@@ -462,9 +469,11 @@ def test_evaluate_equals_the_cli(cli, tmp_path, liu, rec, report):
     assert table[-1]["rows"] == len(rec)
     assert table[-1]["mean_mm"][1] < 0.3 * table[-1]["mean_mm"][0]
     # one robot alone, a path for the recording
+    per_model = ("mean_mm", "max_mm", "lowest_margin", "near_snap", "unstable")
     assert ctr_py.evaluate(liu, str(CLEARANCE)) == [
-        {**r, "mean_mm": r["mean_mm"][:1], "max_mm": r["max_mm"][:1]} for r in table
+        {**r, **{k: r[k][:1] for k in per_model}} for r in table
     ]
+    assert all(r["near_snap"] == [[], []] and 0.05 < min(r["lowest_margin"]) for r in table)
 
 
 def test_evaluate_bad_input(cli, liu, rec):

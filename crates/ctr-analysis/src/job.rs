@@ -73,6 +73,11 @@ pub struct FkJob {
     pub warn_margin: Option<f64>,
 }
 
+/// The default warning margin (`ctr-cli fk --warn-margin`, and `diagnose` and `evaluate`
+/// marking rows near a snap): a margin this small is within a few degrees of a snap on the
+/// seed's robot with long transmissions (README, "Snap-through").
+pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
+
 /// A run of consecutive rows whose stability margin is below the warning margin.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LowMargin {

@@ -53,6 +53,11 @@ pub struct Prediction {
     pub p: Vec<[f64; 3]>,
     /// Rows whose solve did not converge (their tip is the solver's last iterate).
     pub failed: usize,
+    /// The stability margin of each row's solution
+    /// ([`FkResult::stability_margin`](ctr_formats::FkResult::stability_margin): 1 far
+    /// from a snap, 0 at one, negative on an unstable branch) along the branch the run
+    /// followed; `NaN` for rows not simulated or not converged.
+    pub margin: Vec<f64>,
 }
 
 /// Simulates the runs `runs` (indices into `rec.runs`) of a recording.
@@ -66,6 +71,8 @@ pub struct Prediction {
 /// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n50,0,0,0,50\n".as_bytes(), "rec.csv", 1)?;
 /// let pred = predict(&ModelSpec::from_spec(&spec), &rec, &[0]).unwrap();
 /// assert!((pred.p[0][2] - 50.0).abs() < 1e-12);
+/// // one tube: nothing to snap against, the margin of uncoupled tubes
+/// assert!((pred.margin[0] - 1.0).abs() < 1e-9);
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Prediction, SimError> {
@@ -122,6 +129,7 @@ fn simulate(
     let mut out = Prediction {
         p: vec![[f64::NAN; 3]; rec.rows.len()],
         failed: 0,
+        margin: vec![f64::NAN; rec.rows.len()],
     };
     for &run in runs {
         let range = rec.runs[run].rows.clone();
@@ -146,7 +154,9 @@ fn simulate(
                     SolveError::Joint(error) => SimError::Joint { row, error },
                     error => SimError::Load { row, error },
                 })?;
-            if tip.status != Status::Converged {
+            if tip.status == Status::Converged {
+                out.margin[row] = tip.stability_margin;
+            } else {
                 out.failed += 1;
             }
             out.p[row] = tip.position;

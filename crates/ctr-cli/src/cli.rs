@@ -4,6 +4,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
 use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::IkOptions;
+use ctr_analysis::job::DEFAULT_WARN_MARGIN;
 use ctr_formats::{ModelKind, ORIENTATION_TOLERANCE_DEG};
 use ctr_hw::emulator::Fault;
 use std::path::PathBuf;
@@ -440,10 +441,6 @@ pub struct FkArgs {
     #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN)]
     pub warn_margin: f64,
 }
-
-/// `ctr-cli fk --warn-margin`'s default: a margin this small is within a few degrees of
-/// a snap on the seed's robot with long transmissions (README, "Snap-through").
-pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
 
 /// Options of `ctr-cli ik`.
 #[derive(Debug, clap::Args)]

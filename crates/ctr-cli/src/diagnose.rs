@@ -4,8 +4,9 @@
 //! prints and writes.
 
 use crate::Failure;
+use ctr_analysis::job::DEFAULT_WARN_MARGIN;
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options, Page};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Marks, Options, Page};
 use ctr_formats::{AtomicFile, Recording, RobotSpec, CLEARANCE_FIT_TABLE_SIZES};
 use std::path::{Path, PathBuf};
 
@@ -52,6 +53,12 @@ pub struct DiagnoseArgs {
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+    /// Mark the rows where the user's or the fitted model has a stability margin below
+    /// X (within X of a snap; below 0: on an unstable branch) in the report's stability
+    /// and the summary: a jump in the data there is physics, not a tracker glitch.
+    /// As `fk --warn-margin`; 0 marks only rows on an unstable branch.
+    #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN, value_parser = parse_warn_margin)]
+    pub warn_margin: f64,
 }
 
 /// Options of `ctr-cli calibrate`.
@@ -83,6 +90,9 @@ pub struct CalibrateArgs {
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+    /// Mark the rows near a snap as diagnose does.
+    #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN, value_parser = parse_warn_margin)]
+    pub warn_margin: f64,
 }
 
 /// Options of `ctr-cli evaluate`.
@@ -94,12 +104,25 @@ pub struct EvaluateArgs {
     /// The recording.
     #[arg(long, value_name = "REC.csv")]
     pub recording: PathBuf,
+    /// Say where a model's stability margin is below X along the recording (within X of
+    /// a snap; below 0: on an unstable branch), after the table. As `fk --warn-margin`;
+    /// 0 says only where a model is on an unstable branch.
+    #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN, value_parser = parse_warn_margin)]
+    pub warn_margin: f64,
 }
 
 /// `--table`: a size in [`CLEARANCE_FIT_TABLE_SIZES`].
 fn table_size_parser() -> clap::builder::RangedI64ValueParser<u16> {
     let (low, high) = CLEARANCE_FIT_TABLE_SIZES.into_inner();
     clap::value_parser!(u16).range(low as i64..=high as i64)
+}
+
+fn parse_warn_margin(s: &str) -> Result<f64, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number"))?;
+    ctr_diagnosis::checked_warn_margin(x)
 }
 
 fn parse_effect(s: &str) -> Result<EffectId, String> {
@@ -226,6 +249,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         candidates: args.effects.unwrap_or_else(|| EffectId::ALL.to_vec()),
         threads: threads(args.threads),
         clearance_table: None,
+        warn_margin: args.warn_margin,
         ..Default::default()
     };
     let outputs = Outputs {
@@ -247,6 +271,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
         holdout: args.holdout.unwrap_or_default(),
         threads: threads(args.threads),
         clearance_table: args.table.map(usize::from),
+        warn_margin: args.warn_margin,
         ..Options::default()
     };
     let outputs = Outputs {
@@ -288,7 +313,7 @@ pub fn evaluate(args: EvaluateArgs) -> Result<(), Failure> {
     }
     let rec = Recording::from_path(&args.recording, n_tubes.unwrap_or(1))
         .map_err(|e| Failure::Input(e.to_string()))?;
-    let table = ctr_diagnosis::evaluate(&models, &rec)
+    let table = ctr_diagnosis::evaluate(&models, &rec, args.warn_margin)
         .map_err(|e| Failure::Input(format!("{}: {e}", rec.file)))?;
     let width = table.iter().map(|r| r.run.len()).max().unwrap_or(3).max(3);
     let mut head = format!("{:width$}  {:>5}", "run", "rows");
@@ -302,6 +327,23 @@ pub fn evaluate(args: EvaluateArgs) -> Result<(), Failure> {
             line += &format!("  {:>22}", format!("{mean:.3} / {max:.3}"));
         }
         println!("{line}");
+    }
+    // where each model is near a snap: the `all` row's ranges
+    if let Some(all) = table.last() {
+        let marks: Vec<Marks> = all
+            .near_snap
+            .iter()
+            .zip(&all.unstable)
+            .map(|(near, unstable)| Marks {
+                near_snap: near.clone(),
+                unstable: unstable.clone(),
+            })
+            .collect();
+        let names: Vec<String> = names.iter().map(|n| format!("{n} is")).collect();
+        let who: Vec<(&str, &Marks)> = names.iter().map(String::as_str).zip(&marks).collect();
+        if let Some(words) = ctr_diagnosis::near_snap_words(args.warn_margin, &who) {
+            println!("{words}");
+        }
     }
     Ok(())
 }

@@ -159,6 +159,22 @@ fn bad_diagnose_input_exits_2_with_one_line() {
     };
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (diagnose(&["--effects", "lag"]), "unknown effect \"lag\""),
+        (
+            diagnose(&["--warn-margin=-1"]),
+            "-1 is not a warning margin",
+        ),
+        (
+            vec![
+                "evaluate",
+                "--robot",
+                arg(&robot),
+                "--recording",
+                arg(&rec),
+                "--warn-margin",
+                "nan",
+            ],
+            "NaN is not a warning margin",
+        ),
         (diagnose(&["--holdout", "blocks:1"]), "wanted blocks:K"),
         (
             diagnose(&["--holdout", "runs:nope"]),

@@ -44,7 +44,7 @@ pub fn calibrate(
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
-    let start = Start::new(model, rec, &opt.holdout, opt.threads)?;
+    let start = Start::new(model, rec, &opt.holdout, opt.threads, opt.warn_margin)?;
     let n = model.robot.n_tubes();
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {
@@ -128,9 +128,15 @@ pub fn calibrate(
             ci95: serde_json::Value::Null,
         })
         .collect();
-    Ok(
-        start.finish(rec, m, findings, fig, &e, Vec::new(), pred.failed, |_| {
-            "`ctr-cli diagnose` searches the other effects".into()
-        }),
-    )
+    Ok(start.finish(
+        rec,
+        m,
+        findings,
+        fig,
+        &e,
+        &pred.margin,
+        Vec::new(),
+        pred.failed,
+        |_| "`ctr-cli diagnose` searches the other effects".into(),
+    ))
 }

@@ -9,6 +9,8 @@ pub enum DiagnoseError {
     Split(String),
     /// A plot of the report could not be drawn.
     Plot(String),
+    /// An option is out of its range (the option and why).
+    Option(String),
 }
 
 impl std::fmt::Display for DiagnoseError {
@@ -17,6 +19,7 @@ impl std::fmt::Display for DiagnoseError {
             DiagnoseError::Model(m) => write!(f, "{m}"),
             DiagnoseError::Split(m) => write!(f, "{m}"),
             DiagnoseError::Plot(m) => write!(f, "{m}"),
+            DiagnoseError::Option(m) => write!(f, "{m}"),
         }
     }
 }

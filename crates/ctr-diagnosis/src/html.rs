@@ -5,17 +5,19 @@
 //! The page is drawn from the report's JSON (the text `--report` writes, compact), the
 //! recording it was made from, the user's robot and the fitted one: both front ends
 //! build a [`Page`] from the same four and get the same bytes. It shows, in order: the
-//! verdict (`explained` or not, against the noise); the error before and after; the
-//! findings with their parameters and 95 % intervals, and what the data do not pin;
-//! the error by run; the residual against the feature that located the error; each
-//! run's measured and modelled tip paths; what is left unexplained and where; the
-//! suggested next run; the fitted robot file; how the figures were made. Every string
-//! taken from a file (run labels, names, the robot file) is HTML-escaped.
+//! verdict (`explained` or not, against the noise); the error before and after, and the
+//! rows where a model is near a snap (when there are); the findings with their
+//! parameters and 95 % intervals, and what the data do not pin; the error by run; the
+//! residual against the feature that located the error; each run's measured and
+//! modelled tip paths; what is left unexplained and where; the suggested next run; the
+//! fitted robot file; how the figures were made. Every string taken from a file (run
+//! labels, names, the robot file) is HTML-escaped.
 
 use crate::error::DiagnoseError;
 use crate::numbers::{intervals, sig, Interval};
 use crate::plots::{Plot, RunError, Traces};
 use crate::report::{fitted_file, Report, REMOVED};
+use crate::stability::Stability;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Recording, RobotSpec};
 use serde_json::Value;
@@ -238,6 +240,13 @@ fn verdict(h: &mut String, r: &Value) {
         );
     }
     h.push_str("</table>\n");
+    // the rows near a snap (a report without the key: none said)
+    let near = serde_json::from_value::<Stability>(r["stability"].clone())
+        .ok()
+        .and_then(|s| s.words());
+    if let Some(words) = near {
+        let _ = writeln!(h, "<p id=\"near-snap\">{}</p>", escape(&words));
+    }
 }
 
 /// One interval as a table row: name, value, lower and upper end.

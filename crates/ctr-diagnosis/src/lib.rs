@@ -45,6 +45,11 @@
 //!    (`ci95`) from the fit's Jacobian, the larger of the classical and a
 //!    cluster-robust covariance; directions the data cannot pin are tied to the nominal
 //!    and the combinations they do pin reported instead.
+//! 8. **Near a snap** (`stability`, [`Stability`]): the rows where the user's or the
+//!    fitted model, solved along each run as the robot moved, has a stability margin
+//!    below [`Options::warn_margin`] (or below 0: an unstable branch), from the margins
+//!    of the simulations already made; a jump in the data there is physics, and
+//!    tracker outliers among those rows are said to be so.
 //!
 //! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
 //! outliers), `residual` (error vectors and their figures), [`locate`], `candidates`
@@ -53,10 +58,11 @@
 //! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
 //! identifiability), `numbers` (a JSON value's numbers by key path),
 //! `calibrate` and `evaluate` (no search), `start` (what both start from and how both
-//! finish), `report` ([`Report`] and its [`summary`](Report::summary)), `prose` (the
-//! words), `plots` (the SVG plots drawn from a report and its recording, [`Plot`]),
-//! `html` (the report as one self-contained page, [`Page`]), `options`, `error`. The fits run on the one thread pool,
-//! `ctr_formats::parallel`; results do not depend on the thread count.
+//! finish), `stability` (the rows near a snap), `report` ([`Report`] and its
+//! [`summary`](Report::summary)), `prose` (the words), `plots` (the SVG plots drawn
+//! from a report and its recording, [`Plot`]), `html` (the report as one
+//! self-contained page, [`Page`]), `options`, `error`. The fits run on the one thread
+//! pool, `ctr_formats::parallel`; results do not depend on the thread count.
 //!
 //! With the `synth` feature (off by default), `synth` generates recordings with
 //! concealed effects: the proof bench of the diagnosis, used by this crate's tests and
@@ -82,6 +88,7 @@ mod residual;
 mod screen;
 mod search;
 mod split;
+mod stability;
 mod start;
 mod suggest;
 #[cfg(feature = "synth")]
@@ -107,6 +114,9 @@ pub use report::{
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};
+pub use stability::{
+    checked_warn_margin, near_snap_words, MarginRange, Marks, Stability, ROWS_AFTER_A_SNAP,
+};
 pub use suggest::{MIN_SHRINK, SUGGESTED_ROWS, WIDE};
 pub use uncertainty::{CORRELATED_ABOVE, INDEPENDENT_BELOW, UNIDENTIFIED_EIGEN};
 pub use verify::MIN_GAIN_OVER_EMPIRICAL;

@@ -2,6 +2,7 @@
 
 use crate::candidates::EffectId;
 use crate::split::Holdout;
+use ctr_analysis::job::DEFAULT_WARN_MARGIN;
 
 /// Options of a diagnosis.
 #[derive(Clone, Debug, PartialEq)]
@@ -15,6 +16,11 @@ pub struct Options {
     /// `calibrate` only: fit the clearance as a smooth table of this many values per
     /// pair over one turn (the seed's measured "database") instead of a cosine profile.
     pub clearance_table: Option<usize>,
+    /// Rows where the user's or the fitted model has a stability margin below this are
+    /// marked near a snap in the report's `stability` (default
+    /// [`DEFAULT_WARN_MARGIN`], `ctr-cli fk --warn-margin`'s); 0 marks only rows on an
+    /// unstable branch. Finite and not negative.
+    pub warn_margin: f64,
     /// The checks a finding must pass before the report calls it physics (all on; one
     /// is turned off only to show what it guards against).
     pub checks: Checks,
@@ -53,6 +59,7 @@ impl Default for Options {
             candidates: EffectId::ALL.to_vec(),
             threads: 0,
             clearance_table: None,
+            warn_margin: DEFAULT_WARN_MARGIN,
             checks: Checks::default(),
         }
     }

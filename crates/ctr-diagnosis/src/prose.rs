@@ -165,12 +165,25 @@ pub(crate) fn explain(c: EffectId, m: &ModelSpec) -> String {
     }
 }
 
-/// What is left, in words.
+/// Up to ten file lines, `, ...` after them when there are more.
+fn lines_words(lines: &[usize]) -> String {
+    lines
+        .iter()
+        .take(10)
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+        + if lines.len() > 10 { ", ..." } else { "" }
+}
+
+/// What is left, in words. `near_snap` are the file lines of the outliers that lie near
+/// a snap of a model (said apart: physics, not the tracker).
 pub(crate) fn leftover(
     rec: &Recording,
     fig: &Figures,
     inliers: &Figures,
     outliers: &[usize],
+    near_snap: &[usize],
     outlier_threshold_mm: f64,
     noise: &Noise,
     explained: bool,
@@ -179,18 +192,26 @@ pub(crate) fn leftover(
     let outlier_note = if outliers.is_empty() {
         String::new()
     } else {
+        let (snap, tracker): (Vec<usize>, Vec<usize>) = outliers
+            .iter()
+            .map(|&r| rec.rows[r].line)
+            .partition(|line| near_snap.contains(line));
+        let mut kinds = Vec::new();
+        if !tracker.is_empty() {
+            kinds.push(format!("tracker outliers: lines {}", lines_words(&tracker)));
+        }
+        if !snap.is_empty() {
+            kinds.push(format!(
+                "near a snap, physics rather than a tracker glitch: lines {}",
+                lines_words(&snap)
+            ));
+        }
         format!(
             " once {} row{} farther than {outlier_threshold_mm:.3} mm from the residual's median \
-             (tracker outliers: lines {}) are set aside",
+             ({}) are set aside",
             outliers.len(),
             if outliers.len() == 1 { "" } else { "s" },
-            outliers
-                .iter()
-                .take(10)
-                .map(|&r| rec.rows[r].line.to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-                + if outliers.len() > 10 { ", ..." } else { "" }
+            kinds.join("; ")
         )
     };
     if explained {
@@ -210,9 +231,18 @@ pub(crate) fn leftover(
                 String::new()
             } else {
                 format!(
-                    "; {:.3} mm without {} outlier rows",
+                    "; {:.3} mm without {} outlier rows{}",
                     inliers.rms_mm,
-                    outliers.len()
+                    outliers.len(),
+                    if near_snap.is_empty() {
+                        String::new()
+                    } else {
+                        format!(
+                            ", lines {} of them near a snap (physics rather than a tracker \
+                             glitch)",
+                            lines_words(near_snap)
+                        )
+                    }
                 )
             },
             noise.rms_mm,

@@ -4,6 +4,7 @@
 use crate::candidates::EffectId;
 use crate::locate::Statement;
 use crate::numbers::{self, sig};
+use crate::stability::{MarginRange, Stability};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Correction, RobotSpec};
 use serde::Serialize;
@@ -211,6 +212,10 @@ pub struct Report {
     /// The run to record next to pin what is poorly identified (`null` when every
     /// parameter is pinned well or no simple run would help).
     pub suggested_run: Option<SuggestedRun>,
+    /// The rows where the user's or the fitted model, solved along the recording, is
+    /// within the warning margin of a snap or on an unstable branch (a jump in the data
+    /// there is physics, not a tracker glitch).
+    pub stability: Stability,
 }
 
 /// How the note of a finding taken out after the search starts.
@@ -330,6 +335,10 @@ impl Report {
             "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
             self.final_.rms_mm, self.final_.heldout_rms_mm, self.unexplained
         );
+        if let Some(line) = self.stability.words() {
+            s += &line;
+            s += "\n";
+        }
         if let Some(run) = &self.suggested_run {
             s += &format!(
                 "Next run to record: {} ({} rows, one every {} s). Expected: {}.\n",
@@ -427,6 +436,15 @@ pub struct RunErrors {
     pub mean_mm: Vec<f64>,
     /// Largest tip error per model, mm.
     pub max_mm: Vec<f64>,
+    /// Smallest stability margin per model over the run's rows, along the recording
+    /// (`NaN` when no row converged).
+    pub lowest_margin: Vec<f64>,
+    /// Per model, the ranges of the run's rows within the warning margin of a snap
+    /// ([`Marks::near_snap`](crate::Marks::near_snap); every run's for `all`).
+    pub near_snap: Vec<Vec<MarginRange>>,
+    /// Per model, the ranges of the run's rows on an unstable branch
+    /// ([`Marks::unstable`](crate::Marks::unstable)).
+    pub unstable: Vec<Vec<MarginRange>>,
 }
 
 /// A finding's parameters with their intervals, in words: `tau_s 0.7500 (0.7412 to

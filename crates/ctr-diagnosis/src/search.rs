@@ -67,7 +67,7 @@ pub fn diagnose(
     rec: &Recording,
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let start = Start::new(model, rec, &opt.holdout, opt.threads)?;
+    let start = Start::new(model, rec, &opt.holdout, opt.threads, opt.warn_margin)?;
     let (held, all_runs, fit_rows) = (&start.held, &start.all_runs, &start.fit_rows);
     let (e0, baseline) = (&start.e0, start.baseline);
     let n = model.robot.n_tubes();
@@ -368,6 +368,7 @@ pub fn diagnose(
         findings,
         current_fig,
         &current_e,
+        &final_pred.margin,
         tried,
         final_pred.failed,
         |fit_mask| {

@@ -10,6 +10,7 @@ use crate::prose::leftover;
 use crate::report::{Diagnosis, Figures, Finding, Noise, Report, Split, Trial};
 use crate::residual::{errors, figures, inlier_figures};
 use crate::split::{split, Holdout};
+use crate::stability::{checked_warn_margin, Stability};
 use crate::suggest;
 use crate::uncertainty;
 use ctr_analysis::model::ModelSpec;
@@ -43,6 +44,10 @@ pub(crate) struct Start {
     pub(crate) user: ModelSpec,
     /// Worker threads (resolved).
     pub(crate) threads: usize,
+    /// The user model's stability margin per row, along the recording.
+    pub(crate) margin0: Vec<f64>,
+    /// Rows whose margin is below this are near a snap.
+    pub(crate) warn_margin: f64,
 }
 
 impl Start {
@@ -52,7 +57,10 @@ impl Start {
         rec: &Recording,
         holdout: &Holdout,
         threads: usize,
+        warn_margin: f64,
     ) -> Result<Self, DiagnoseError> {
+        let warn_margin = checked_warn_margin(warn_margin)
+            .map_err(|m| DiagnoseError::Option(format!("warn_margin: {m}")))?;
         let (held, split_method) = split(rec, holdout)?;
         let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
         let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
@@ -71,6 +79,8 @@ impl Start {
             e0,
             user: model.clone(),
             threads: ctr_formats::parallel::resolve_threads(threads),
+            margin0: base.margin,
+            warn_margin,
         })
     }
 
@@ -84,9 +94,10 @@ impl Start {
         }
     }
 
-    /// The report of the model `fitted`, whose error vectors are `e`: the noise estimated
-    /// again on what it leaves (closer to white), tracker outliers set aside, and what is
-    /// left in words (`where_left` says where, given the fit rows' mask).
+    /// The report of the model `fitted`, whose error vectors are `e` and stability margins
+    /// `margin` (per row, from the same simulation): the noise estimated again on what it
+    /// leaves (closer to white), tracker outliers set aside, the rows near a snap, and
+    /// what is left in words (`where_left` says where, given the fit rows' mask).
     pub(crate) fn finish(
         self,
         rec: &Recording,
@@ -94,6 +105,7 @@ impl Start {
         mut findings: Vec<Finding>,
         final_: Figures,
         e: &[[f64; 3]],
+        margin: &[f64],
         tried: Vec<Trial>,
         failed_rows: usize,
         where_left: impl FnOnce(&[bool]) -> String,
@@ -127,6 +139,7 @@ impl Start {
         // structured residual is spread, not outlying
         let (empirical, correction, left) = hybrid::fit(rec, e, &self.held, huber_mm);
         let (outliers, outlier_threshold_mm) = outlier_rows(rec, &left);
+        let stability = Stability::new(rec, self.warn_margin, &self.margin0, margin, &outliers);
         let inliers = inlier_figures(e, &self.held, &outliers);
         let explained = inliers.heldout_rms_mm <= NOISE_TOLERANCE * noise.rms_mm;
         let fit_mask: Vec<bool> = self.held.iter().map(|h| !h).collect();
@@ -135,6 +148,7 @@ impl Start {
             &final_,
             &inliers,
             &outliers,
+            &stability.outlier_lines_near_snap,
             outlier_threshold_mm,
             &noise,
             explained,
@@ -165,6 +179,7 @@ impl Start {
                 identifiability: overall.identifiability,
                 correlated: overall.correlated,
                 suggested_run,
+                stability,
             },
             fitted,
             empirical: (!explained).then_some(correction),

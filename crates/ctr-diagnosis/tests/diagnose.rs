@@ -34,6 +34,12 @@ fn check(id: &str) {
     }
     eprintln!("   {}", r.unexplained);
     assert_eq!(found, expected, "{id}");
+    // the public recordings stay far from a snap: no row marked, nothing said
+    assert!(
+        r.stability.nominal.is_empty() && r.stability.fitted.is_empty(),
+        "{id}: {:?}",
+        r.stability
+    );
     let outside = truth
         .get("outside_vocabulary")
         .and_then(|v| v.as_object())

@@ -16,8 +16,9 @@ use crate::errors;
 use crate::json::Json;
 use crate::recording::{self, Recording};
 use crate::robot::{check_threads, Robot, MAX_THREADS};
+use ctr_analysis::job::DEFAULT_WARN_MARGIN;
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Options, Page};
+use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, MarginRange, Options, Page};
 use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -37,6 +38,26 @@ fn holdout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Holdout> {
     s.to_cow()?
         .parse::<Holdout>()
         .map_err(|m| errors::input(format!("holdout: {m}")))
+}
+
+/// `warn_margin=`: `None` (the CLI's default, `ctr-cli fk --warn-margin`'s) or a number,
+/// finite and not negative.
+fn warn_margin_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<f64> {
+    let Some(obj) = obj else {
+        return Ok(DEFAULT_WARN_MARGIN);
+    };
+    let x: f64 = if obj.is_instance_of::<pyo3::types::PyBool>() {
+        None
+    } else {
+        obj.extract().ok()
+    }
+    .ok_or_else(|| {
+        errors::input_type(format!(
+            "warn_margin: a {} is not a number (a stability margin, e.g. 0.05)",
+            type_name(obj)
+        ))
+    })?;
+    ctr_diagnosis::checked_warn_margin(x).map_err(|m| errors::input(format!("warn_margin: {m}")))
 }
 
 /// A list of effect ids: a comma-separated str or a sequence of str.
@@ -374,6 +395,12 @@ impl Report {
         self.item(py, "suggested_run")
     }
 
+    /// `stability`: the rows where the user's or the fitted model is near a snap.
+    #[getter]
+    fn stability<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.item(py, "stability")
+    }
+
     /// `empirical`: the labelled empirical correction, or `None` when explained.
     #[getter]
     fn empirical<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
@@ -406,7 +433,7 @@ fn fit_report(
 
 /// Diagnoses a robot's model against a recording; see `_ctr.pyi`.
 #[pyfunction]
-#[pyo3(signature = (robot, recording, *, holdout = None, effects = None, threads = None))]
+#[pyo3(signature = (robot, recording, *, holdout = None, effects = None, threads = None, warn_margin = None))]
 pub fn diagnose(
     py: Python<'_>,
     robot: &Bound<'_, Robot>,
@@ -414,6 +441,7 @@ pub fn diagnose(
     holdout: Option<&Bound<'_, PyAny>>,
     effects: Option<&Bound<'_, PyAny>>,
     threads: Option<i64>,
+    warn_margin: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Report> {
     let options = Options {
         holdout: holdout_arg(holdout)?,
@@ -423,6 +451,7 @@ pub fn diagnose(
         },
         threads: threads_opt(threads)?,
         clearance_table: None,
+        warn_margin: warn_margin_arg(warn_margin)?,
         ..Default::default()
     };
     fit_report(py, robot, recording, |model, rec| {
@@ -432,7 +461,7 @@ pub fn diagnose(
 
 /// Fits the named effects' parameters; see `_ctr.pyi`.
 #[pyfunction]
-#[pyo3(signature = (robot, recording, fit, *, table = None, holdout = None, threads = None))]
+#[pyo3(signature = (robot, recording, fit, *, table = None, holdout = None, threads = None, warn_margin = None))]
 pub fn calibrate(
     py: Python<'_>,
     robot: &Bound<'_, Robot>,
@@ -441,6 +470,7 @@ pub fn calibrate(
     table: Option<i64>,
     holdout: Option<&Bound<'_, PyAny>>,
     threads: Option<i64>,
+    warn_margin: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Report> {
     let fit = effects_arg("fit", fit)?;
     if fit.is_empty() {
@@ -465,6 +495,7 @@ pub fn calibrate(
         holdout: holdout_arg(holdout)?,
         threads: threads_opt(threads)?,
         clearance_table: table,
+        warn_margin: warn_margin_arg(warn_margin)?,
         ..Options::default()
     };
     fit_report(py, robot, recording, |model, rec| {
@@ -472,13 +503,38 @@ pub fn calibrate(
     })
 }
 
+/// Per model, its ranges as dicts (the report's `stability` keys).
+fn ranges_per_model<'py>(
+    py: Python<'py>,
+    per_model: &[Vec<MarginRange>],
+) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for ranges in per_model {
+        let list = PyList::empty(py);
+        for r in ranges {
+            let d = PyDict::new(py);
+            d.set_item("run", &r.run)?;
+            d.set_item("lines", r.lines.to_vec())?;
+            d.set_item("rows", r.rows)?;
+            d.set_item("lowest_margin", r.lowest_margin)?;
+            d.set_item("lowest_line", r.lowest_line)?;
+            list.append(d)?;
+        }
+        out.append(list)?;
+    }
+    Ok(out)
+}
+
 /// Mean and largest tip error per run for several models; see `_ctr.pyi`.
 #[pyfunction]
+#[pyo3(signature = (robots, recording, *, warn_margin = None))]
 pub fn evaluate<'py>(
     py: Python<'py>,
     robots: &Bound<'py, PyAny>,
     recording: &Bound<'py, PyAny>,
+    warn_margin: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyList>> {
+    let warn_margin = warn_margin_arg(warn_margin)?;
     let list: Vec<Bound<'py, Robot>> = if let Ok(r) = robots.cast::<Robot>() {
         vec![r.clone()]
     } else {
@@ -527,7 +583,7 @@ pub fn evaluate<'py>(
         .map(|r| ModelSpec::from_spec(r.get().spec()))
         .collect();
     let table = py
-        .detach(|| ctr_diagnosis::evaluate(&models, rec))
+        .detach(|| ctr_diagnosis::evaluate(&models, rec, warn_margin))
         .map_err(|e| errors::input(format!("{}: {e}", rec.file)))?;
     let out = PyList::empty(py);
     for r in table {
@@ -536,6 +592,15 @@ pub fn evaluate<'py>(
         d.set_item("rows", r.rows)?;
         d.set_item("mean_mm", r.mean_mm)?;
         d.set_item("max_mm", r.max_mm)?;
+        // no converged row: no margin (None, as the report's JSON writes NaN)
+        let lowest: Vec<Option<f64>> = r
+            .lowest_margin
+            .iter()
+            .map(|m| (!m.is_nan()).then_some(*m))
+            .collect();
+        d.set_item("lowest_margin", lowest)?;
+        d.set_item("near_snap", ranges_per_model(py, &r.near_snap)?)?;
+        d.set_item("unstable", ranges_per_model(py, &r.unstable)?)?;
         out.append(d)?;
     }
     Ok(out)

@@ -487,20 +487,58 @@ class Trial(TypedDict):
     added: bool
     note: str
 
+class MarginRange(TypedDict):
+    """Consecutive rows of one run whose stability margin is below a threshold
+    (typing only): the run's label, the file ``lines`` of its first and last row
+    (the header is line 1), its ``rows``, and the ``lowest_margin`` with its
+    ``lowest_line``."""
+
+    run: str
+    lines: List[int]
+    rows: int
+    lowest_margin: float
+    lowest_line: int
+
+class Marks(TypedDict):
+    """The rows one model marks (typing only): ``near_snap``, ranges below the
+    warning margin (rows on an unstable branch included); ``unstable``, ranges below
+    0 (the model on an unstable branch)."""
+
+    near_snap: List[MarginRange]
+    unstable: List[MarginRange]
+
+class Stability(TypedDict):
+    """Where the user's (``nominal``) or the ``fitted`` model, solved along the
+    recording row after row as the robot moved, is within ``warn_margin`` of a snap
+    or on an unstable branch; ``outlier_lines_near_snap``: the tracker outliers
+    (``outlier_lines``) in a near-snap range of either model or the row right after
+    one (typing only)."""
+
+    warn_margin: float
+    nominal: Marks
+    fitted: Marks
+    outlier_lines_near_snap: List[int]
+
 class RunErrors(TypedDict):
-    """Tip errors of one run under each model of :func:`evaluate` (typing only)."""
+    """Tip errors of one run under each model of :func:`evaluate` (typing only), and
+    per model its smallest stability margin over the run's rows (``None`` when none
+    converged) and its ranges of rows near a snap and on an unstable branch (for
+    ``"all"``: every run's)."""
 
     run: str
     rows: int
     mean_mm: List[float]
     max_mm: List[float]
+    lowest_margin: List[Optional[float]]
+    near_snap: List[List[MarginRange]]
+    unstable: List[List[MarginRange]]
 
 class Report:
     """The mismatch report of :func:`diagnose` or :func:`calibrate`: the JSON report
     ``ctr-cli diagnose --report`` writes (``docs/formats.md``: ``baseline``,
     ``findings``, ``final``, ``unexplained``; with this project's ``noise``,
-    ``split``, ``located``, ``tried``, ``failed_rows``), the summary the CLI prints and
-    the fitted model.
+    ``split``, ``located``, ``tried``, ``failed_rows``, ``stability``, ...), the
+    summary the CLI prints and the fitted model.
 
     The attributes are fresh plain Python values on every access (changing them does
     not change the report). Immutable, comparable with ``==`` and picklable.
@@ -586,6 +624,13 @@ class Report:
         expected after it; ``None`` otherwise. ``ctr-cli diagnose --suggest-run``
         writes its joints."""
     @property
+    def stability(self) -> Stability:
+        """The rows where the user's or the fitted model is within the warning
+        margin (``warn_margin=``, default 0.05 as ``ctr-cli fk --warn-margin``) of a
+        snap or on an unstable branch, from the margins of the simulations the
+        diagnosis made anyway: a jump in the data there is physics, not a tracker
+        glitch. The summary says it in one line when a row is marked."""
+    @property
     def empirical(self) -> Optional[dict[str, Any]]:
         """The labelled empirical correction fitted on top of the physics for what is
         left (``method``, ``terms``, ``rms_mm``, ``heldout_rms_mm``, ``dominant``), or
@@ -617,6 +662,7 @@ def diagnose(
     holdout: Optional[str] = None,
     effects: Optional[Union[str, Iterable[str]]] = None,
     threads: Optional[int] = None,
+    warn_margin: Optional[float] = None,
 ) -> Report:
     """Diagnoses the robot's model against a recording: ``ctr-cli diagnose``.
 
@@ -631,11 +677,14 @@ def diagnose(
     ``"runs:LABEL,LABEL"`` (those runs held out whole), the CLI's ``--holdout``.
     ``effects``: the effect ids to try (a list, or a comma-separated str as the
     CLI's ``--effects``); ``None`` tries all ten. ``threads``: worker threads,
-    ``None`` or 0 for all cores (results do not depend on it). The GIL is released
-    while it runs (about a second for a thousand rows on two cores).
+    ``None`` or 0 for all cores (results do not depend on it). ``warn_margin``: the
+    rows where the user's or the fitted model has a stability margin below it are
+    marked near a snap in :attr:`Report.stability` (``None``: 0.05, the CLI's
+    ``--warn-margin`` default; 0 marks only rows on an unstable branch). The GIL is
+    released while it runs (about a second for a thousand rows on two cores).
 
     Raises :class:`~ctr_py.InputError` with the CLI's message for an unknown effect
-    id, a bad holdout string, a holdout run label the recording lacks, a split
+    id, a bad holdout string, a negative or non-finite ``warn_margin``, a holdout run label the recording lacks, a split
     leaving no fit or no held-out rows, a recording read for another tube count, or
     a model that cannot be simulated on the recording;
     :class:`~ctr_py.InputTypeError` for arguments of the wrong type; reading a path
@@ -650,6 +699,7 @@ def calibrate(
     table: Optional[int] = None,
     holdout: Optional[str] = None,
     threads: Optional[int] = None,
+    warn_margin: Optional[float] = None,
 ) -> Report:
     """Fits the parameters of the named effects together, without the search:
     ``ctr-cli calibrate --fit``. For a lab that knows what to identify: a clearance
@@ -660,18 +710,25 @@ def calibrate(
 
     ``table`` (3 to 72, with ``fit=["clearance"]``): the clearance as a smooth table
     of that many values per pair over one turn instead of a cosine profile.
-    ``holdout`` and ``threads`` as for :func:`diagnose`. Raises as :func:`diagnose`,
-    and :class:`~ctr_py.InputError` for an empty ``fit``, a ``table`` out of range or
-    an effect the recording cannot show (latency without ``t_s``, ...).
+    ``holdout``, ``threads`` and ``warn_margin`` as for :func:`diagnose`. Raises as
+    :func:`diagnose`, and :class:`~ctr_py.InputError` for an empty ``fit``, a
+    ``table`` out of range or an effect the recording cannot show (latency without
+    ``t_s``, ...).
     """
 
 def evaluate(
-    robots: Union[Robot, Sequence[Robot]], recording: RecordingArg
+    robots: Union[Robot, Sequence[Robot]],
+    recording: RecordingArg,
+    *,
+    warn_margin: Optional[float] = None,
 ) -> list[RunErrors]:
     """Mean and largest tip error per run for each model: ``ctr-cli evaluate``.
 
     One dict per run in file order, then one for the whole recording (``run ==
-    "all"``), with ``mean_mm`` and ``max_mm`` lists in the order of ``robots``. All
+    "all"``), with ``mean_mm`` and ``max_mm`` lists in the order of ``robots``, and
+    per model its ``lowest_margin`` and its ranges of rows within ``warn_margin`` of
+    a snap (``near_snap``) or on an unstable branch (``unstable``), as
+    :attr:`Report.stability` gives them (``None``: 0.05, the CLI's default). All
     robots must have the same tube count (the CLI's message otherwise), that of the
     recording.
     """
