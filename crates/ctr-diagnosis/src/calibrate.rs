@@ -137,6 +137,7 @@ pub fn calibrate(
         &pred.margin,
         Vec::new(),
         pred.failed,
+        None,
         |_| "`ctr-cli diagnose` searches the other effects".into(),
     ))
 }

@@ -305,6 +305,8 @@ pub fn diagnose(
     // and the rest refitted together, until all pass
     let ctx = verify::Context::new(rec, held, huber, threads, start.noise.rms_mm, opt.checks);
     let last_round = tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
+    // the joint fit's assessment of check 3, when the loop ends on it: the report's
+    let mut assessed = None;
     loop {
         let mut checks: Vec<verify::Checked> = accepted
             .iter()
@@ -315,17 +317,21 @@ pub fn diagnose(
                 f.empirical_heldout_rms_mm = ch.empirical_heldout_rms_mm;
             }
         }
+        let mut assessment = None;
         if checks.iter().all(|c| c.failure.is_none()) && !accepted.is_empty() {
             // 3. identified: only once the other checks pass (it needs the joint fit's
             // covariance, and a finding taken out changes everyone's)
-            for (c, failure) in ctx.identified(&current, model, &accepted, fit_rows) {
+            let (failures, a) = ctx.identified(&current, model, &accepted, fit_rows);
+            for (c, failure) in failures {
                 if let Some(ch) = checks.iter_mut().find(|ch| ch.effect == c) {
                     ch.failure = Some(failure);
                 }
             }
+            assessment = a;
         }
         let failed: Vec<&verify::Checked> = checks.iter().filter(|c| c.failure.is_some()).collect();
         if failed.is_empty() {
+            assessed = assessment;
             break;
         }
         for ch in &failed {
@@ -371,6 +377,7 @@ pub fn diagnose(
         &final_pred.margin,
         tried,
         final_pred.failed,
+        assessed,
         |fit_mask| {
             let statements = locate::locate(rec, &current_e, fit_mask, &final_pred.p);
             let mut out = locate::summary(&statements);

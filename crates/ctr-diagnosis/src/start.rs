@@ -12,7 +12,7 @@ use crate::residual::{errors, figures, inlier_figures};
 use crate::split::{split, Holdout};
 use crate::stability::{checked_warn_margin, Stability};
 use crate::suggest;
-use crate::uncertainty;
+use crate::uncertainty::{self, Assessment};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_formats::Recording;
@@ -98,6 +98,8 @@ impl Start {
     /// `margin` (per row, from the same simulation): the noise estimated again on what it
     /// leaves (closer to white), tracker outliers set aside, the rows near a snap, and
     /// what is left in words (`where_left` says where, given the fit rows' mask).
+    /// `assessed`: the uncertainty of exactly these findings of `fitted` on the fit
+    /// rows, when the search's last check computed it (not computed again).
     pub(crate) fn finish(
         self,
         rec: &Recording,
@@ -108,6 +110,7 @@ impl Start {
         margin: &[f64],
         tried: Vec<Trial>,
         failed_rows: usize,
+        assessed: Option<Assessment>,
         where_left: impl FnOnce(&[bool]) -> String,
     ) -> Diagnosis {
         let huber_mm = self.huber_mm();
@@ -122,7 +125,7 @@ impl Start {
             self.threads,
         );
         let (fitted, overall, assessment) =
-            uncertainty::attach(&problem, &self.user, &mut findings);
+            uncertainty::attach(&problem, &self.user, &mut findings, assessed);
         let fit_share = self.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
         let next =
             assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));

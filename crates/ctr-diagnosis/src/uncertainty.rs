@@ -579,14 +579,16 @@ pub(crate) fn problem_of<'a>(
 /// Gives every finding its `ci95` (and `identified` combinations), at `fitted` against
 /// the user's model `user`; returns the model with what is not identified set to the
 /// nominal (the findings' parameters rewritten from it) and the report's overall words.
+/// `assessed`, when given, is `problem`'s assessment already computed.
 pub(crate) fn attach(
     problem: &Problem,
     user: &ModelSpec,
     findings: &mut [Finding],
+    assessed: Option<Assessment>,
 ) -> (ModelSpec, Overall, Option<Assessment>) {
     let x = problem.read(&problem.base);
     let nominal = problem.read(user);
-    let Some(a) = Assessment::new(problem, &x, &nominal) else {
+    let Some(a) = assessed.or_else(|| Assessment::new(problem, &x, &nominal)) else {
         for f in findings.iter_mut() {
             f.ci95 = Value::Null;
         }

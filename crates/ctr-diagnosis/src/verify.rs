@@ -230,26 +230,27 @@ impl<'a> Context<'a> {
 
     /// Check 3 on the findings `accepted` of `m`, fitted together on `fit_rows`
     /// against the user's model `user`: the failure of each finding whose parameters
-    /// the data do not tell from the nominal. Nothing when the covariance cannot be
-    /// computed (the other checks stand alone then).
+    /// the data do not tell from the nominal, and the assessment they were judged on
+    /// (the report's intervals, when nothing fails). No failure when the covariance
+    /// cannot be computed (the other checks stand alone then).
     pub(crate) fn identified(
         &self,
         m: &ModelSpec,
         user: &ModelSpec,
         accepted: &[EffectId],
         fit_rows: &[usize],
-    ) -> Vec<(EffectId, Failure)> {
+    ) -> (Vec<(EffectId, Failure)>, Option<Assessment>) {
         if !self.checks.identified {
-            return Vec::new();
+            return (Vec::new(), None);
         }
         let problem =
             uncertainty::problem_of(self.rec, m, accepted, fit_rows, self.huber_mm, self.threads);
         let x = problem.read(m);
         let nominal = problem.read(user);
         let Some(a) = Assessment::new(&problem, &x, &nominal) else {
-            return Vec::new();
+            return (Vec::new(), None);
         };
-        problem
+        let failures = problem
             .blocks
             .iter()
             .filter_map(|&c| {
@@ -262,7 +263,8 @@ impl<'a> Context<'a> {
                     },
                 ))
             })
-            .collect()
+            .collect();
+        (failures, Some(a))
     }
 
     /// With `c` taken out (its error `e`): the held-out RMS of the linear fit of the
@@ -428,6 +430,7 @@ mod tests {
             Checks::default(),
         );
         ctx.identified(fitted, &user(), &[EffectId::Latency], &fit_rows)
+            .0
     }
 
     #[test]
@@ -454,6 +457,7 @@ mod tests {
         let rows: Vec<usize> = (0..rec.rows.len()).collect();
         assert!(ctx
             .identified(&with_latency(0.01), &user(), &[EffectId::Latency], &rows)
+            .0
             .is_empty());
     }
 
