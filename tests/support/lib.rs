@@ -5,6 +5,7 @@
 
 pub use serde_json;
 
+use ctr_core::nalgebra::{Matrix3, Vector3, Vector6};
 use ctr_core::{Joints, Robot, TubeParams};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -282,4 +283,37 @@ pub mod props {
         }
         (s, theta_deg.to_vec())
     }
+}
+
+/// `(dp, omega)` of a central difference between two tip frames over `2h`, omega the
+/// spatial angular velocity `vee(dR R^T)` at the midpoint frame `r`.
+pub fn difference(
+    plus: &ctr_core::Frame<f64>,
+    minus: &ctr_core::Frame<f64>,
+    r: &Matrix3<f64>,
+    h: f64,
+) -> Vector6<f64> {
+    let dp = (plus.position - minus.position) / (2.0 * h);
+    let w = (plus.rotation - minus.rotation) / (2.0 * h) * r.transpose();
+    let omega = Vector3::new(
+        w[(2, 1)] - w[(1, 2)],
+        w[(0, 2)] - w[(2, 0)],
+        w[(1, 0)] - w[(0, 1)],
+    ) * 0.5;
+    Vector6::new(dp.x, dp.y, dp.z, omega.x, omega.y, omega.z)
+}
+
+/// A valid two-tube robot of round numbers (precurved tubes of 200 and 100 mm radius),
+/// for tests that need one robot and no data file.
+pub fn two_tubes() -> [TubeParams<f64>; 2] {
+    [
+        TubeParams {
+            curvature_radius_mm: Some(200.0),
+            ..TubeParams::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33)
+        },
+        TubeParams {
+            curvature_radius_mm: Some(100.0),
+            ..TubeParams::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)
+        },
+    ]
 }

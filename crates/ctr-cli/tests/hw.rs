@@ -9,12 +9,12 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, ChildStdin, Command, Output, Stdio};
+use std::process::{Child, ChildStdin, Output, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{cli, repo, spawn, stderr};
+use common::{cli, repo, spawn, stderr, table};
 
 /// Longest any single command may take before the test fails (and kills it).
 const DEADLINE: Duration = Duration::from_secs(60);
@@ -165,34 +165,15 @@ impl Drop for Emulator {
 
 /// Runs `ctr-cli ARGS` to completion, killing it if it outlives [`DEADLINE`].
 fn run(args: &[&str]) -> Output {
-    let child = spawn(args, Stdio::null());
-    let pid = child.id();
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    match rx.recv_timeout(DEADLINE) {
-        Ok(output) => output.unwrap(),
-        Err(_) => {
-            let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
-            panic!("ctr-cli {args:?} did not finish within {DEADLINE:?}");
-        }
-    }
+    common::wait_within(
+        spawn(args, Stdio::null()),
+        DEADLINE,
+        &format!("ctr-cli {args:?}"),
+    )
 }
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// A CSV text as header and rows of strings.
-fn table(text: &str) -> (Vec<String>, Vec<Vec<String>>) {
-    let mut rdr = csv::Reader::from_reader(text.as_bytes());
-    let header = rdr.headers().unwrap().iter().map(str::to_owned).collect();
-    let rows = rdr
-        .records()
-        .map(|r| r.unwrap().iter().map(str::to_owned).collect())
-        .collect();
-    (header, rows)
 }
 
 fn num(s: &str) -> f64 {

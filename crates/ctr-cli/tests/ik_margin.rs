@@ -36,13 +36,7 @@ fn snapping_robot(dir: &Path) -> std::path::PathBuf {
 
 /// The fields of a CSV: header and rows.
 fn read(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let mut rdr = csv::Reader::from_path(path).unwrap();
-    let header = rdr.headers().unwrap().iter().map(String::from).collect();
-    let rows = rdr
-        .records()
-        .map(|r| r.unwrap().iter().map(String::from).collect())
-        .collect();
-    (header, rows)
+    common::table(&std::fs::read_to_string(path).unwrap())
 }
 
 fn column(path: &Path, name: &str) -> Vec<String> {

@@ -17,7 +17,6 @@ use common::{arg, cli, repo, stderr};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Output, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 /// Seed of the joints and of the kill delays.
@@ -68,20 +67,7 @@ fn run_ok(args: &[&str]) -> Duration {
 
 /// Waits for `child`, failing the test after [`DEADLINE`].
 fn finish(child: Child) -> Output {
-    let pid = child.id();
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    match rx.recv_timeout(DEADLINE) {
-        Ok(o) => o.unwrap(),
-        Err(_) => {
-            let _ = std::process::Command::new("kill")
-                .args(["-9", &pid.to_string()])
-                .status();
-            panic!("ctr-cli (pid {pid}) did not finish within {DEADLINE:?}");
-        }
-    }
+    common::wait_within(child, DEADLINE, "ctr-cli")
 }
 
 /// A delay uniform in [0, LATE x `full`].

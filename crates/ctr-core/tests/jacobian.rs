@@ -1,7 +1,7 @@
 //! Jacobians from integrated sensitivities against central finite differences of the
 //! solver itself, on the shared robots at random configurations inside the manifest's
 //! ranges, and the compliance against Euler-Bernoulli.
-use ctr_core::nalgebra::{Matrix3, Vector3, Vector6};
+use ctr_core::nalgebra::Vector6;
 use ctr_core::{Joints, Model, Request, Robot, Solver, SolverConfig, Status, TubeParams};
 use ctr_suite::*;
 
@@ -54,24 +54,6 @@ fn random_joints<const N: usize>(name: &str, rng: &mut Rng) -> Joints<f64, N> {
         theta[i] = tlo + (thi - tlo) * rng.next();
     }
     Joints::from_mm_deg(s, theta)
-}
-
-/// `(dp, omega)` of a central difference between two tip frames over `2h`, omega the
-/// spatial angular velocity `vee(dR R^T)` at the midpoint frame `r`.
-fn difference(
-    plus: &ctr_core::Frame<f64>,
-    minus: &ctr_core::Frame<f64>,
-    r: &Matrix3<f64>,
-    h: f64,
-) -> Vector6<f64> {
-    let dp = (plus.position - minus.position) / (2.0 * h);
-    let w = (plus.rotation - minus.rotation) / (2.0 * h) * r.transpose();
-    let omega = Vector3::new(
-        w[(2, 1)] - w[(1, 2)],
-        w[(0, 2)] - w[(2, 0)],
-        w[(1, 0)] - w[(0, 1)],
-    ) * 0.5;
-    Vector6::new(dp.x, dp.y, dp.z, omega.x, omega.y, omega.z)
 }
 
 /// Relative error of a column, position and orientation blocks apart; returns the worse.

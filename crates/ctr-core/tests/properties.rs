@@ -571,14 +571,7 @@ fn jacobian_matches<const N: usize>(
         let (plus, sp) = shifted(1.0);
         let (minus, sm) = shifted(-1.0);
         prop_assume!(sp == Status::Converged && sm == Status::Converged);
-        let dp = (plus.position - minus.position) / (2.0 * FD_STEP);
-        let w = (plus.rotation - minus.rotation) / (2.0 * FD_STEP) * r.transpose();
-        let omega = Vector3::new(
-            w[(2, 1)] - w[(1, 2)],
-            w[(0, 2)] - w[(2, 0)],
-            w[(1, 0)] - w[(0, 1)],
-        ) * 0.5;
-        let fd = Vector6::new(dp.x, dp.y, dp.z, omega.x, omega.y, omega.z);
+        let fd = ctr_suite::difference(&plus, &minus, &r, FD_STEP);
         let got = if j < N {
             jac.feed[j]
         } else {

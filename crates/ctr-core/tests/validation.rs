@@ -5,18 +5,7 @@ use ctr_core::{
     Status, TubeParams,
 };
 
-fn good() -> [TubeParams<f64>; 2] {
-    [
-        TubeParams {
-            curvature_radius_mm: Some(200.0),
-            ..TubeParams::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33)
-        },
-        TubeParams {
-            curvature_radius_mm: Some(100.0),
-            ..TubeParams::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)
-        },
-    ]
-}
+use ctr_suite::two_tubes as good;
 
 fn with(i: usize, f: impl Fn(&mut TubeParams<f64>)) -> Result<Robot<f64, 2>, RobotError> {
     let mut p = good();

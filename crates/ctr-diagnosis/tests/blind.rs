@@ -1111,27 +1111,17 @@ fn registration_and_rotation_offsets_share_one_rotation() {
 
 // ---- each acceptance check of a finding keeps a false finding out ----
 
-/// The findings of `case` diagnosed with `checks` (the walk `walk_rows` long when
-/// given).
-fn found_with(case: &Case, checks: ctr_diagnosis::Checks) -> Vec<&'static str> {
-    found_with_walk(case, checks, None)
-}
-
-fn found_with_walk(
-    case: &Case,
-    checks: ctr_diagnosis::Checks,
-    walk_rows: Option<usize>,
-) -> Vec<&'static str> {
+/// The findings of `case` diagnosed with `checks`, its walk `walk_rows` long.
+fn found_with(case: &Case, walk_rows: usize, checks: ctr_diagnosis::Checks) -> Vec<&'static str> {
     let (spec, ranges) = robot_and_ranges(case.robot);
-    let n = spec.robot.n_tubes();
     let (user, _) = generated(case);
     let world = ModelSpec {
         effects: case.effects.clone(),
         ..user.clone()
     };
     let synth = SynthSpec {
-        walk_rows: walk_rows.unwrap_or(synth_spec(case, n).walk_rows),
-        ..synth_spec(case, n)
+        walk_rows,
+        ..synth_spec(case, spec.robot.n_tubes())
     };
     let gen = generate(&world, &ranges, &synth).unwrap();
     let opt = Options {
@@ -1152,48 +1142,58 @@ fn found_with_walk(
 #[test]
 fn each_acceptance_check_keeps_a_false_finding_out() {
     let all = ctr_diagnosis::Checks::default();
-    // a wrong lead-screw pitch: a joint offset of the feed stands in for it, constant
-    // where the error grows with the feed (check 2)
-    let gain = Case::new("ablate_feed_gain", "liu2023", 62).unmodelled(Unmodelled::FeedGain {
-        tube: 1,
-        gain: 1.05,
-    });
-    assert_eq!(found_with(&gain, all), Vec::<&str>::new());
-    let no_constant = ctr_diagnosis::Checks {
-        constant: false,
-        ..all
-    };
-    let false_finding = found_with(&gain, no_constant);
-    eprintln!("feed gain, check 2 off: {false_finding:?}");
-    assert!(!false_finding.is_empty());
-    // a miscalibrated tracker: a precurvature takes part of the scale error, no
-    // better than a generic term of its size (check 1)
-    let scale =
-        Case::new("ablate_tracker_scale", "liu2023", 66).unmodelled(Unmodelled::TrackerScale {
-            scale_error: [0.01, -0.008, 0.006],
-        });
-    assert_eq!(found_with(&scale, all), Vec::<&str>::new());
-    let no_generic = ctr_diagnosis::Checks {
-        beats_generic: false,
-        ..all
-    };
-    let false_finding = found_with(&scale, no_generic);
-    eprintln!("tracker scale, check 1 off: {false_finding:?}");
-    assert!(!false_finding.is_empty());
-    // a wrong gear ratio: gravity (at several times 9.81 m/s^2) takes part of it, but
-    // with every finding fitted together its region still holds the nominal (check 3)
-    // (the recording `scripts/bench_diagnose.sh` times as gen-rotation-gain-nitinol2)
-    let gear =
-        Case::new("ablate_rotation_gain", "nitinol2", 93).unmodelled(Unmodelled::RotationGain {
-            tube: 1,
-            gain: 1.06,
-        });
-    assert_eq!(found_with_walk(&gear, all, Some(400)), Vec::<&str>::new());
-    let no_identified = ctr_diagnosis::Checks {
-        identified: false,
-        ..all
-    };
-    let false_finding = found_with_walk(&gear, no_identified, Some(400));
-    eprintln!("rotation gain, check 3 off: {false_finding:?}");
-    assert!(!false_finding.is_empty());
+    let default_walk = SynthSpec::default().walk_rows;
+    let cases = [
+        // a wrong lead-screw pitch: a joint offset of the feed stands in for it,
+        // constant where the error grows with the feed (check 2)
+        (
+            "check 2, constant",
+            Case::new("ablate_feed_gain", "liu2023", 62).unmodelled(Unmodelled::FeedGain {
+                tube: 1,
+                gain: 1.05,
+            }),
+            default_walk,
+            ctr_diagnosis::Checks {
+                constant: false,
+                ..all
+            },
+        ),
+        // a miscalibrated tracker: a precurvature takes part of the scale error, no
+        // better than a generic term of its size (check 1)
+        (
+            "check 1, beats a generic term",
+            Case::new("ablate_tracker_scale", "liu2023", 66).unmodelled(Unmodelled::TrackerScale {
+                scale_error: [0.01, -0.008, 0.006],
+            }),
+            default_walk,
+            ctr_diagnosis::Checks {
+                beats_generic: false,
+                ..all
+            },
+        ),
+        // a wrong gear ratio: gravity (at several times 9.81 m/s^2) takes part of it,
+        // but with every finding fitted together its region still holds the nominal
+        // (check 3; the recording `scripts/bench_diagnose.sh` times as
+        // gen-rotation-gain-nitinol2, its walk 400 rows)
+        (
+            "check 3, identified",
+            Case::new("ablate_rotation_gain", "nitinol2", 93).unmodelled(
+                Unmodelled::RotationGain {
+                    tube: 1,
+                    gain: 1.06,
+                },
+            ),
+            400,
+            ctr_diagnosis::Checks {
+                identified: false,
+                ..all
+            },
+        ),
+    ];
+    for (check, case, walk, without) in cases {
+        assert_eq!(found_with(&case, walk, all), Vec::<&str>::new(), "{check}");
+        let false_finding = found_with(&case, walk, without);
+        eprintln!("{}, {check} off: {false_finding:?}", case.name);
+        assert!(!false_finding.is_empty(), "{check}");
+    }
 }

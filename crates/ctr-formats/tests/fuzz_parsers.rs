@@ -652,16 +652,7 @@ fn corpus(reader: &str) -> Vec<PathBuf> {
 
 /// The robot the table and recording corpora are read against: two tubes.
 fn corpus_robot() -> Vec<TubeParams<f64>> {
-    vec![
-        TubeParams {
-            curvature_radius_mm: Some(200.0),
-            ..TubeParams::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33)
-        },
-        TubeParams {
-            curvature_radius_mm: Some(100.0),
-            ..TubeParams::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)
-        },
-    ]
+    ctr_suite::two_tubes().to_vec()
 }
 
 /// Every input kept under `tests/corpus/` (inputs that once failed, and seeds) passes

@@ -159,15 +159,7 @@ impl TwoTubes {
             // the curved parts start inside a step only where a cut falls: evaluate the
             // coefficient at the step's middle (steps are short against every length)
             let sm = s0 + 0.5 * h;
-            let rhs_m = |y: [f64; 4]| rhs(sm, y);
-            let add = |y: [f64; 4], k: [f64; 4], w: f64| core::array::from_fn(|j| y[j] + w * k[j]);
-            let k1 = rhs_m(y);
-            let k2 = rhs_m(add(y, k1, 0.5 * h));
-            let k3 = rhs_m(add(y, k2, 0.5 * h));
-            let k4 = rhs_m(add(y, k3, h));
-            y = core::array::from_fn(|j| {
-                y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-            });
+            y = rk4(y, h, |y| rhs(sm, y));
         }
         f(end, y[0], y[1]);
         (y[1], y[3])
@@ -287,16 +279,8 @@ impl TwoTubes {
                 let sm = (i as f64 + 0.5) * h;
                 let both = self.t[0].curved_at(sm, self.s[0]) && self.t[1].curved_at(sm, self.s[1]);
                 let g = if both { c } else { 0.0 };
-                let rhs = |y: [f64; 4]| [y[1], g * y[0].sin(), y[3], (g * y[0].cos() - mu) * y[2]];
-                let add = |y: [f64; 4], k: [f64; 4], w: f64| -> [f64; 4] {
-                    core::array::from_fn(|j| y[j] + w * k[j])
-                };
-                let k1 = rhs(y);
-                let k2 = rhs(add(y, k1, 0.5 * h));
-                let k3 = rhs(add(y, k2, 0.5 * h));
-                let k4 = rhs(add(y, k3, h));
-                y = core::array::from_fn(|j| {
-                    y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                y = rk4(y, h, |y| {
+                    [y[1], g * y[0].sin(), y[3], (g * y[0].cos() - mu) * y[2]]
                 });
             }
             y[3]
@@ -417,4 +401,16 @@ pub fn follow(params: &[TubeParams<f64>], s: [f64; 2], rows: &[[f64; 2]]) -> Vec
         });
     }
     out
+}
+
+/// One classical Runge-Kutta step of `y' = rhs(y)` over `h`.
+fn rk4(y: [f64; 4], h: f64, rhs: impl Fn([f64; 4]) -> [f64; 4]) -> [f64; 4] {
+    let add = |y: [f64; 4], k: [f64; 4], w: f64| -> [f64; 4] {
+        core::array::from_fn(|j| y[j] + w * k[j])
+    };
+    let k1 = rhs(y);
+    let k2 = rhs(add(y, k1, 0.5 * h));
+    let k3 = rhs(add(y, k2, 0.5 * h));
+    let k4 = rhs(add(y, k3, h));
+    core::array::from_fn(|j| y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]))
 }
