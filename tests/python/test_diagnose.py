@@ -109,15 +109,15 @@ def test_recording_columns_are_the_files(rec):
     assert all((rec.run[rows] == label).all() for label, rows in rec.runs)
     assert sum(s.stop - s.start for _, s in rec.runs) == len(rec)
     assert list(rec.lines[:3]) == [2, 3, 4]
-    assert rec.force_n is None and rec.quaternion is None
+    assert rec.force_n is None and rec.quaternion is None and rec.tangent is None
 
 
 def test_recording_optional_columns_and_n_tubes(tmp_path):
     path = tmp_path / "weights.csv"
     path.write_text(
-        "s1_mm,theta1_deg,x_mm,y_mm,z_mm,qw,qx,qy,qz,fx_n,fy_n,fz_n,note\n"
-        "10,0,0,0,10,1,0,0,0,0,0,-0.1,a\n"
-        "11,5,0.5,0,11,1,0,0,0,0,0,-0.2,b\n"
+        "s1_mm,theta1_deg,x_mm,y_mm,z_mm,qw,qx,qy,qz,tx,ty,tz,fx_n,fy_n,fz_n,note\n"
+        "10,0,0,0,10,1,0,0,0,0,0,1,0,0,-0.1,a\n"
+        "11,5,0.5,0,11,1,0,0,0,0.6,0,0.8,0,0,-0.2,b\n"
     )
     rec = ctr_py.read_recording(path, n_tubes=1)
     assert len(rec) == 2 and not rec.has_time
@@ -128,6 +128,16 @@ def test_recording_optional_columns_and_n_tubes(tmp_path):
     again = pickle.loads(pickle.dumps(rec))
     assert again == rec and np.array_equal(again.force_n, rec.force_n)
     assert np.array_equal(again.quaternion, rec.quaternion)
+    assert np.array_equal(rec.tangent, [[0, 0, 1], [0.6, 0, 0.8]])
+    assert np.array_equal(again.tangent, rec.tangent)
+
+
+def test_recording_refuses_a_tangent_that_is_not_unit(tmp_path):
+    path = tmp_path / "tangent.csv"
+    path.write_text("s1_mm,theta1_deg,x_mm,y_mm,z_mm,tx,ty,tz\n10,0,0,0,10,0,0,1\n11,0,0,0,11,0,0.5,1\n")
+    with pytest.raises(ctr_py.InputError) as e:
+        ctr_py.read_recording(path, n_tubes=1)
+    assert str(e.value).startswith(f"{path}:3: tx,ty,tz = 0, 0.5, 1 has norm 1.118")
 
 
 def test_recording_pickles_exactly(rec):

@@ -51,6 +51,9 @@ impl std::error::Error for SimError {}
 pub struct Prediction {
     /// Predicted tip per recording row (`NaN` for rows of runs not simulated), mm.
     pub p: Vec<[f64; 3]>,
+    /// Predicted tip frame per recording row, unit quaternion `w, x, y, z` (z the
+    /// tangent; in the measuring frame like `p`; `NaN` for rows not simulated).
+    pub q: Vec<[f64; 4]>,
     /// Rows whose solve did not converge (their tip is the solver's last iterate).
     pub failed: usize,
     /// The stability margin of each row's solution
@@ -128,6 +131,7 @@ fn simulate(
     let rows = model.rows().map_err(SimError::Model)?;
     let mut out = Prediction {
         p: vec![[f64::NAN; 3]; rec.rows.len()],
+        q: vec![[f64::NAN; 4]; rec.rows.len()],
         failed: 0,
         margin: vec![f64::NAN; rec.rows.len()],
     };
@@ -160,6 +164,7 @@ fn simulate(
                 out.failed += 1;
             }
             out.p[row] = tip.position;
+            out.q[row] = tip.quaternion;
         }
     }
     Ok(out)

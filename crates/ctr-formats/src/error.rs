@@ -164,11 +164,19 @@ pub enum ErrorKind {
         /// the cell as found
         found: String,
     },
-    /// A target orientation `qw,qx,qy,qz` is not a unit quaternion.
+    /// A target or measured orientation `qw,qx,qy,qz` is not a unit quaternion.
     #[error("qw,qx,qy,qz = {}, {}, {}, {} has norm {norm}: expected a unit quaternion (norm 1 within 1e-3)", .q[0], .q[1], .q[2], .q[3])]
     NotUnitQuaternion {
         /// the quaternion as read, `w, x, y, z`
         q: [f64; 4],
+        /// its norm
+        norm: f64,
+    },
+    /// A measured tangent `tx,ty,tz` of a recording is not a unit vector.
+    #[error("tx,ty,tz = {}, {}, {} has norm {norm}: expected a unit tangent (norm 1 within 1e-3)", .t[0], .t[1], .t[2])]
+    NotUnitTangent {
+        /// the tangent as read, `x, y, z`
+        t: [f64; 3],
         /// its norm
         norm: f64,
     },

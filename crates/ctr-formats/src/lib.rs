@@ -187,7 +187,7 @@ pub use effects::{
 pub use empirical::{Correction, Empirical, EmpiricalTerm, Feature, Term, AXES};
 pub use joints::JointTable;
 pub use output::AtomicFile;
-pub use recorded::{RecordedRow, Recording, Run};
+pub use recorded::{AngularColumns, AngularWeight, RecordedRow, Recording, Run, UNIT_TOLERANCE};
 pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{
     LimitsSection, ModelKind, ModelSection, RobotFile, RobotSpec, TubeFile, TubeLimits,

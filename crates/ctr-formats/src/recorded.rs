@@ -4,9 +4,14 @@
 //! Required: the joint columns of the robot and `x_mm,y_mm,z_mm`. Optional: `t_s`
 //! (time, s; without it the row index stands for time), `run` (a label; rows with the
 //! same label in one contiguous block form a run; without it the whole file is one
-//! run), `qw,qx,qy,qz` (measured orientation, read and kept), `fx_n,fy_n,fz_n` (a known
-//! tip force in W, N; absent means none). Other columns are ignored. Within a run time
-//! must not decrease: friction and latency depend on the order of the rows.
+//! run), `qw,qx,qy,qz` (measured orientation of the tip frame, a unit quaternion),
+//! `tx,ty,tz` (measured unit tangent of the tip: a 5-DOF sensor, no roll),
+//! `fx_n,fy_n,fz_n` (a known tip force in W, N; absent means none). Each optional set
+//! comes whole or not at all; an orientation or a tangent whose norm is more than
+//! [`UNIT_TOLERANCE`] from 1 is refused with its line (the others are kept as read;
+//! whoever uses them normalises).
+//! Other columns are ignored. Within a run time must not decrease: friction and latency
+//! depend on the order of the rows.
 
 use super::table::closest;
 use crate::error::{Error, ErrorKind, Location};
@@ -27,8 +32,12 @@ pub struct RecordedRow {
     pub q: Vec<f64>,
     /// Measured tip, mm, in the tracker's frame.
     pub p: [f64; 3],
-    /// Measured orientation `w, x, y, z`, if recorded.
+    /// Measured orientation `w, x, y, z` (a unit quaternion within [`UNIT_TOLERANCE`]),
+    /// if recorded.
     pub quaternion: Option<[f64; 4]>,
+    /// Measured tangent of the tip `x, y, z` (a unit vector within
+    /// [`UNIT_TOLERANCE`]), if recorded.
+    pub tangent: Option<[f64; 3]>,
     /// Known tip force in W, N (zero when not recorded).
     pub force_n: [f64; 3],
 }
@@ -69,10 +78,68 @@ pub struct Recording {
     pub has_time: bool,
     /// Whether the file has tip force columns.
     pub has_force: bool,
+    /// How the angular columns count against the positions in a residual, when they
+    /// do: never read from the file, set by whoever estimated their noise (the
+    /// diagnosis, from the data). `None`: only the positions count.
+    pub angular: Option<AngularWeight>,
 }
+
+/// The angular columns of a recording that enter a residual, and their weight.
+///
+/// A row's angular error (a small rotation, rad, [`AngularColumns`] says of what)
+/// counts as `mm_per_rad` times itself in mm of tip error: the position noise over
+/// the angular noise, so that both enter whitened by their own noise, `e / sigma`,
+/// and the positions keep their weight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AngularWeight {
+    /// Which column set.
+    pub columns: AngularColumns,
+    /// Noise of one angular component, rad.
+    pub sigma_rad: f64,
+    /// Noise of one position axis, mm, it is weighed against.
+    pub sigma_mm: f64,
+}
+
+impl AngularWeight {
+    /// mm of tip error one radian of angular error counts as.
+    pub fn mm_per_rad(&self) -> f64 {
+        self.sigma_mm / self.sigma_rad
+    }
+}
+
+/// The angular column sets of a recording.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AngularColumns {
+    /// `qw,qx,qy,qz`: the whole tip frame (3 angular components).
+    Orientation,
+    /// `tx,ty,tz`: the tip's tangent (2 angular components: no roll).
+    Tangent,
+}
+
+impl AngularColumns {
+    /// The columns, as the header names them.
+    pub fn names(self) -> &'static str {
+        match self {
+            AngularColumns::Orientation => "qw,qx,qy,qz",
+            AngularColumns::Tangent => "tx,ty,tz",
+        }
+    }
+
+    /// Independent angular components a row of the set measures.
+    pub fn components(self) -> usize {
+        match self {
+            AngularColumns::Orientation => 3,
+            AngularColumns::Tangent => 2,
+        }
+    }
+}
+
+/// How far from 1 the norm of a measured orientation quaternion or tangent may be.
+pub const UNIT_TOLERANCE: f64 = 1e-3;
 
 const TIP: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
 const QUAT: [&str; 4] = ["qw", "qx", "qy", "qz"];
+const TANGENT: [&str; 3] = ["tx", "ty", "tz"];
 const FORCE: [&str; 3] = ["fx_n", "fy_n", "fz_n"];
 
 impl Recording {
@@ -153,6 +220,7 @@ impl Recording {
             }
         };
         let quat = group(&QUAT)?;
+        let tangent_cols = group(&TANGENT)?;
         let force = group(&FORCE)?;
         let time = find("t_s");
         let run_col = find("run");
@@ -201,7 +269,17 @@ impl Recording {
             };
             let label = run_col.map_or("all", |i| record[i].trim());
             let quaternion = match &quat {
-                Some(c) => Some([num(c[0])?, num(c[1])?, num(c[2])?, num(c[3])?]),
+                Some(c) => {
+                    let q = [num(c[0])?, num(c[1])?, num(c[2])?, num(c[3])?];
+                    Some(unit(q).map_err(|norm| at(ErrorKind::NotUnitQuaternion { q, norm }))?)
+                }
+                None => None,
+            };
+            let tangent = match &tangent_cols {
+                Some(c) => {
+                    let t = [num(c[0])?, num(c[1])?, num(c[2])?];
+                    Some(unit(t).map_err(|norm| at(ErrorKind::NotUnitTangent { t, norm }))?)
+                }
                 None => None,
             };
             let force_n = match &force {
@@ -235,6 +313,7 @@ impl Recording {
                 q,
                 p,
                 quaternion,
+                tangent,
                 force_n,
             });
         }
@@ -253,7 +332,21 @@ impl Recording {
             runs,
             has_time: time.is_some(),
             has_force: force.is_some(),
+            angular: None,
         })
+    }
+
+    /// The angular column set a residual can use: the orientation when recorded (it
+    /// holds the tangent, its z axis), else the tangent; `None` without either.
+    pub fn angular_columns(&self) -> Option<AngularColumns> {
+        let first = self.rows.first()?;
+        if first.quaternion.is_some() {
+            Some(AngularColumns::Orientation)
+        } else if first.tangent.is_some() {
+            Some(AngularColumns::Tangent)
+        } else {
+            None
+        }
     }
 
     /// The commanded joints of a run's rows.
@@ -271,6 +364,15 @@ impl Recording {
             .map(|r| r.t_s)
             .collect()
     }
+}
+
+/// `v` as it is, or its norm when that is more than [`UNIT_TOLERANCE`] from 1.
+fn unit<const N: usize>(v: [f64; N]) -> Result<[f64; N], f64> {
+    let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if (norm - 1.0).abs() > UNIT_TOLERANCE {
+        return Err(norm);
+    }
+    Ok(v)
 }
 
 fn required(n_tubes: usize) -> Vec<String> {

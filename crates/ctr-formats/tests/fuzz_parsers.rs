@@ -484,8 +484,26 @@ fn table_bytes(
 
 // ---------------------------------------------------------------- recordings
 
-/// A recorded row as the reader must give it: t_s, run label, q, p, quaternion, force.
-type Want = (f64, String, Vec<f64>, [f64; 3], Option<[f64; 4]>, [f64; 3]);
+/// A recorded row as the reader must give it: t_s, run label, q, p, quaternion,
+/// tangent, force.
+type Want = (
+    f64,
+    String,
+    Vec<f64>,
+    [f64; 3],
+    Option<[f64; 4]>,
+    Option<[f64; 3]>,
+    [f64; 3],
+);
+
+/// `v` scaled to unit length (a fixed unit vector where it is too short to say).
+fn unit<const N: usize>(v: [f64; N]) -> [f64; N] {
+    let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if norm < 0.1 {
+        return std::array::from_fn(|i| f64::from(u8::from(i == 0)));
+    }
+    v.map(|x| x / norm)
+}
 
 /// A random valid recording: the contract's columns in a random order, optional ones
 /// present or not, run labels of any text (without surrounding spaces: cells are
@@ -495,7 +513,7 @@ struct Rec {
     n: usize,
     header: Vec<String>,
     rows: Vec<Vec<String>>,
-    /// what the reader must give: (t_s, run label, q, p, quaternion, force)
+    /// what the reader must give: (t_s, run label, q, p, quaternion, tangent, force)
     want: Vec<Want>,
     has_time: bool,
 }
@@ -503,7 +521,7 @@ struct Rec {
 fn recording() -> impl Strategy<Value = Rec> {
     (
         1..=4usize,
-        any::<[bool; 4]>(),
+        any::<[bool; 5]>(),
         any::<proptest::sample::Index>(),
         proptest::collection::vec(
             (
@@ -512,12 +530,13 @@ fn recording() -> impl Strategy<Value = Rec> {
                 prop_oneof![3 => "[a-z]{1,3}", 1 => "[^ \t\r\n\u{b}\u{c}\u{85}\u{a0}\u{1680}\u{2000}-\u{200a}\u{2028}\u{2029}\u{202f}\u{205f}\u{3000}]{1,4}"],
                 proptest::array::uniform3(-1e3..1e3f64),
                 proptest::array::uniform4(-1.0..1.0f64),
+                proptest::array::uniform3(-1.0..1.0f64),
                 proptest::array::uniform3(-10.0..10.0f64),
             ),
             1..15,
         ),
     )
-        .prop_map(|(n, [time, run, quat, force], shift, rows)| {
+        .prop_map(|(n, [time, run, quat, tangent, force], shift, rows)| {
             let mut header: Vec<String> = ctr_formats::joint_columns(n);
             header.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
             if time {
@@ -529,6 +548,9 @@ fn recording() -> impl Strategy<Value = Rec> {
             if quat {
                 header.extend(["qw", "qx", "qy", "qz"].map(String::from));
             }
+            if tangent {
+                header.extend(["tx", "ty", "tz"].map(String::from));
+            }
             if force {
                 header.extend(["fx_n", "fy_n", "fz_n"].map(String::from));
             }
@@ -539,7 +561,9 @@ fn recording() -> impl Strategy<Value = Rec> {
             let mut prev_label: Option<String> = None;
             let mut out = Vec::new();
             let mut want = Vec::new();
-            for (i, (q, dt, label, p, qq, f)) in rows.into_iter().enumerate() {
+            for (i, (q, dt, label, p, qq, tt, f)) in rows.into_iter().enumerate() {
+                // a unit quaternion and tangent (within the reader's tolerance, kept as read)
+                let (qq, tt) = (unit(qq), unit(tt));
                 let label = if run { label } else { "all".to_owned() };
                 if prev_label.as_deref() != Some(&label) {
                     t = 0.0;
@@ -561,6 +585,9 @@ fn recording() -> impl Strategy<Value = Rec> {
                         "qx" => format_float(qq[1]),
                         "qy" => format_float(qq[2]),
                         "qz" => format_float(qq[3]),
+                        "tx" => format_float(tt[0]),
+                        "ty" => format_float(tt[1]),
+                        "tz" => format_float(tt[2]),
                         "fx_n" => format_float(f[0]),
                         "fy_n" => format_float(f[1]),
                         "fz_n" => format_float(f[2]),
@@ -574,6 +601,7 @@ fn recording() -> impl Strategy<Value = Rec> {
                     q,
                     p,
                     quat.then_some(qq),
+                    tangent.then_some(tt),
                     if force { f } else { [0.0; 3] },
                 ));
             }
@@ -607,12 +635,13 @@ fn recordings_round_trip() {
             .map_err(|e| TestCaseError::fail(format!("{e}\n{text:?}")))?;
         prop_assert_eq!(rec.rows.len(), r.want.len());
         prop_assert_eq!(rec.has_time, r.has_time);
-        for (row, (t, label, q, p, quat, f)) in rec.rows.iter().zip(&r.want) {
+        for (row, (t, label, q, p, quat, tangent, f)) in rec.rows.iter().zip(&r.want) {
             prop_assert_eq!(row.t_s, *t);
             prop_assert_eq!(&rec.runs[row.run].label, label, "{:?}", text);
             prop_assert_eq!(&row.q, q);
             prop_assert_eq!(row.p, *p);
             prop_assert_eq!(row.quaternion, *quat);
+            prop_assert_eq!(row.tangent, *tangent);
             prop_assert_eq!(row.force_n, *f);
         }
         Ok(())

@@ -23,8 +23,8 @@ pub struct Recording {
 }
 
 /// What a pickled `Recording` holds: file, tube count, whether it has times and
-/// forces, then per row its line, time, joints, tip, quaternion (if recorded) and
-/// force, and the runs as (label, first row, end row).
+/// forces, then per row its line, time, joints, tip, quaternion and tangent (if
+/// recorded) and force, and the runs as (label, first row, end row).
 type State = (
     String,
     usize,
@@ -34,6 +34,7 @@ type State = (
     Vec<f64>,
     Vec<f64>,
     Vec<f64>,
+    Option<Vec<f64>>,
     Option<Vec<f64>>,
     Vec<f64>,
     Vec<(String, usize, usize)>,
@@ -114,7 +115,20 @@ pub fn read_recording(
 
 impl Recording {
     fn check_state(s: &State) -> Result<ctr_formats::Recording, String> {
-        let (file, n_tubes, has_time, has_force, lines, t_s, q, p, quaternion, force, runs) = s;
+        let (
+            file,
+            n_tubes,
+            has_time,
+            has_force,
+            lines,
+            t_s,
+            q,
+            p,
+            quaternion,
+            tangent,
+            force,
+            runs,
+        ) = s;
         let (n, m) = (*n_tubes, lines.len());
         if !(1..=MAX_TUBES).contains(&n) {
             return Err(format!("n_tubes {n} is not in 1..={MAX_TUBES}"));
@@ -126,6 +140,7 @@ impl Recording {
             || p.len() != 3 * m
             || force.len() != 3 * m
             || quaternion.as_ref().is_some_and(|v| v.len() != 4 * m)
+            || tangent.as_ref().is_some_and(|v| v.len() != 3 * m)
         {
             return Err("the columns' lengths do not agree".into());
         }
@@ -151,6 +166,9 @@ impl Recording {
                     quaternion: quaternion
                         .as_ref()
                         .map(|v| [v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3]]),
+                    tangent: tangent
+                        .as_ref()
+                        .map(|v| [v[3 * i], v[3 * i + 1], v[3 * i + 2]]),
                     force_n: [force[3 * i], force[3 * i + 1], force[3 * i + 2]],
                 });
             }
@@ -168,6 +186,7 @@ impl Recording {
                 .collect(),
             has_time: *has_time,
             has_force: *has_force,
+            angular: None,
         })
     }
 }
@@ -196,6 +215,11 @@ impl Recording {
             r.rows
                 .iter()
                 .map(|x| x.quaternion)
+                .collect::<Option<Vec<_>>>()
+                .map(|v| v.into_iter().flatten().collect()),
+            r.rows
+                .iter()
+                .map(|x| x.tangent)
                 .collect::<Option<Vec<_>>>()
                 .map(|v| v.into_iter().flatten().collect()),
             r.rows.iter().flat_map(|x| x.force_n).collect(),
@@ -280,6 +304,16 @@ impl Recording {
             r.quaternion.unwrap_or([f64::NAN; 4])
         })
         .map(Some)
+    }
+
+    /// Measured unit tangents of the tip `(m, 3)` (`tx, ty, tz`), or `None` if not
+    /// recorded.
+    #[getter]
+    fn tangent<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        if self.rec.rows.iter().any(|r| r.tangent.is_none()) {
+            return Ok(None);
+        }
+        column(py, &self.rec.rows, |r| r.tangent.unwrap_or([f64::NAN; 3])).map(Some)
     }
 
     /// Known tip forces `(m, 3)`, N, or `None` if not recorded.

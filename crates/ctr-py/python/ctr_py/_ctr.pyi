@@ -349,8 +349,13 @@ class Recording:
         """Measured tip positions ``(m, 3)``, mm (``x_mm, y_mm, z_mm``)."""
     @property
     def quaternion(self) -> Optional[F64]:
-        """Measured orientations ``(m, 4)`` (``qw, qx, qy, qz``), or ``None`` when the
-        file has no such columns."""
+        """Measured orientations ``(m, 4)`` (``qw, qx, qy, qz``, unit quaternions
+        within 1e-3), or ``None`` when the file has no such columns."""
+    @property
+    def tangent(self) -> Optional[F64]:
+        """Measured unit tangents of the tip ``(m, 3)`` (``tx, ty, tz``, unit within
+        1e-3: a 5-DOF sensor, no roll), or ``None`` when the file has no such
+        columns."""
     @property
     def force_n(self) -> Optional[F64]:
         """Known tip forces in W ``(m, 3)``, N (``fx_n, fy_n, fz_n``, e.g. hung
