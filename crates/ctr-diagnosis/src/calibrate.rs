@@ -44,6 +44,9 @@ pub fn calibrate(
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
+    // the angular columns weighted by their noise: the one residual of the fits
+    let weighted = crate::weighting::weighted(model, rec)?;
+    let rec: &Recording = &weighted;
     let start = Start::new(model, rec, &opt.holdout, opt.threads, opt.warn_margin)?;
     let n = model.robot.n_tubes();
     let mut blocks: Vec<EffectId> = Vec::new();
@@ -103,7 +106,7 @@ pub fn calibrate(
     let m = problem.model(&fitted.x);
     let pred = predict(&m, rec, &start.all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-    let e = errors(rec, &pred.p);
+    let e = errors(rec, &pred);
     let fig = figures(&e, &start.held);
     let change: Vec<[f64; 3]> = e
         .iter()

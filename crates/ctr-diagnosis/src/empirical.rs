@@ -298,6 +298,7 @@ mod tests {
                     ],
                     p: [0.0; 3],
                     quaternion: None,
+                    tangent: None,
                     force_n: [0.0; 3],
                 }
             })
@@ -307,6 +308,7 @@ mod tests {
             n_tubes: 2,
             has_time: true,
             has_force: false,
+            angular: None,
             runs: vec![Run {
                 label: "a".into(),
                 rows: 0..rows.len(),

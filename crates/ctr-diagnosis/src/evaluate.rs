@@ -45,7 +45,7 @@ pub fn evaluate(
         let p = predict(m, rec, &all_runs)
             .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
         sizes.push(
-            errors(rec, &p.p)
+            errors(rec, &p)
                 .iter()
                 .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
                 .collect::<Vec<f64>>(),

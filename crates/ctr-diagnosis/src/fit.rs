@@ -1,7 +1,9 @@
 //! Robust bounded least squares of effect parameters against a recording.
 //!
-//! The residual of row i is `e_i = predicted_i - measured_i` (mm, 3 components). The
-//! cost is Huber's on the row's error norm (quadratic up to `c`, linear beyond), so a
+//! The residual of row i is `e_i = predicted_i - measured_i` (mm, 3 components), and
+//! with weighted angular columns its angular error (mm-equivalent,
+//! [`crate::residual::angular_errors`]) after all rows' positions. The cost is Huber's
+//! on each of these 3-vectors' norm (quadratic up to `c`, linear beyond), so a
 //! few tracker outliers cannot decide a fit:
 //!
 //! ```text
@@ -17,6 +19,7 @@
 //! is solved again as a box-constrained QP with clarabel.
 
 use crate::candidates::EffectId;
+use crate::residual::angular_errors;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict_rows;
 use ctr_formats::Recording;
@@ -205,20 +208,28 @@ impl Problem<'_> {
         unreachable!("parameter index within the blocks")
     }
 
-    /// Predictions of the counted rows, 3 per row (only they are solved); `None` where
-    /// the model cannot be simulated on them (joints pushed out of range, ...).
+    /// Predictions of the counted rows, 3 per row (only they are solved), then with
+    /// weighted angular columns their angular errors, 3 per row (already relative to
+    /// the measurement), then the roughness rows; `None` where the model cannot be
+    /// simulated on them (joints pushed out of range, ...).
     pub fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
         let pred = predict_rows(&self.model(x), self.rec, &self.rows).ok()?;
         let mut out = Vec::with_capacity(3 * self.rows.len());
         for &r in &self.rows {
             out.extend_from_slice(&pred.p[r]);
         }
+        if self.rec.angular.is_some() {
+            let ang = angular_errors(self.rec, &pred);
+            for &r in &self.rows {
+                out.extend_from_slice(&ang[r]);
+            }
+        }
         out.extend(self.roughness(x));
         out.iter().all(|v| v.is_finite()).then_some(out)
     }
 
     /// Errors (predicted - measured) of predictions `pred`, 3 per counted row, then the
-    /// roughness rows as they are.
+    /// angular and roughness rows as they are.
     pub fn errors(&self, pred: &[f64]) -> Vec<f64> {
         let mut e = pred.to_vec();
         for (k, &r) in self.rows.iter().enumerate() {

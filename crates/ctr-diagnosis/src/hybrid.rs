@@ -14,7 +14,7 @@
 
 use crate::empirical::{self, Basis, Field};
 use crate::report::{Empirical, Term};
-use crate::residual::{figures, tips};
+use crate::residual::{figures, positions, tips, with_angles, RowError};
 use ctr_formats::Recording;
 use ctr_formats::{Correction, Term as CorrectionTerm};
 
@@ -29,21 +29,24 @@ const SIZES: [usize; 11] = [0, 1, 2, 3, 4, 6, 8, 10, 14, 18, 24];
 /// Dominant terms the report lists.
 const DOMINANT_TERMS: usize = 5;
 
-/// The empirical term fitted to the physical model's errors `e` (held-out rows
+/// The empirical term fitted to the physical model's errors `e_row` (of the tip
+/// positions; the angular errors are left as they are) (held-out rows
 /// `held`, robust weights from `huber_mm`), and the errors it leaves on every row.
 pub(crate) fn fit(
     rec: &Recording,
-    e: &[[f64; 3]],
+    e_row: &[RowError],
     held: &[bool],
     huber_mm: f64,
-) -> (Empirical, Correction, Vec<[f64; 3]>) {
+) -> (Empirical, Correction, Vec<RowError>) {
     let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-    let basis = Basis::new(rec, &tips(rec, e), &fit_mask);
+    let basis = Basis::new(rec, &tips(rec, e_row), &fit_mask);
     let fields = basis.fields();
+    // the correction is of the tip position; the angular errors stay as they are
+    let e = &positions(e_row);
     let w = empirical::weights(e, &fit_mask, huber_mm);
     let terms = choose_size(&fields, e, &w);
     let chosen = empirical::pursue(&fields, e, &w, terms);
-    let left = empirical::subtract(&fields, &chosen, e);
+    let left = with_angles(&empirical::subtract(&fields, &chosen, e), e_row);
     let fig = figures(&left, held);
     let mut dominant: Vec<Term> = chosen
         .iter()

@@ -18,6 +18,9 @@
 //!    with the motion, leaving `6 sigma^2` of white tracker noise per axis (a robust
 //!    median-absolute-deviation estimate, so jumps at reversals and outliers do not
 //!    count). Rows repeated at rest give a second estimate where there are enough.
+//!    With angular columns (`qw,qx,qy,qz` or `tx,ty,tz`, `angular`), their noise is
+//!    estimated the same way on the angular error, and each row's residual gains the
+//!    angular components weighted by the position noise over theirs (whitened alike).
 //! 3. **Locate** ([`locate`]): regressions of the residual on runs, joints, exposed
 //!    lengths, relative angles (periodic), direction of motion and workspace position.
 //! 4. **Explain**: forward selection over the contract's effects the model leaves out
@@ -52,7 +55,9 @@
 //!    tracker outliers among those rows are said to be so.
 //!
 //! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
-//! outliers), `residual` (error vectors and their figures), [`locate`], `candidates`
+//! outliers), `residual` (error vectors and their figures), `angular` (the angular
+//! columns' errors and noise), `weighting` (their weight against the positions),
+//! `robust` (the median and its spread), [`locate`], `candidates`
 //! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose`]),
 //! `empirical` (the generic basis and matching pursuit), `verify` (the checks of a
 //! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
@@ -68,6 +73,7 @@
 //! concealed effects: the proof bench of the diagnosis, used by this crate's tests and
 //! by the example that writes the bundled `data/examples/liu2023-recording.csv`.
 
+mod angular;
 mod calibrate;
 mod candidates;
 mod empirical;
@@ -85,6 +91,7 @@ mod prose;
 mod quantiles;
 mod report;
 mod residual;
+mod robust;
 mod screen;
 mod search;
 mod split;
@@ -97,6 +104,7 @@ mod uncertainty;
 #[cfg(feature = "synth")]
 mod unmodelled;
 mod verify;
+mod weighting;
 
 pub use calibrate::calibrate;
 pub use candidates::EffectId;
@@ -109,8 +117,8 @@ pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::{Checks, Options};
 pub use plots::Plot;
 pub use report::{
-    fitted_file, Correlated, Diagnosis, Empirical, ExpectedInterval, Figures, Finding, JointRun,
-    Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
+    fitted_file, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval, Figures,
+    Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};

@@ -1,8 +1,11 @@
 //! The noise estimated from the data (not from the model) and the tracker outliers it
 //! sets apart.
 
-use crate::report::Noise;
-use ctr_formats::Recording;
+use crate::report::{AngularNoise, Noise};
+use crate::residual::{components, RowError, WIDTH};
+pub(crate) use crate::robust::median;
+use crate::robust::MAD_TO_SIGMA;
+use ctr_formats::{AngularColumns, Recording};
 
 /// What is left counts as noise when its RMS is at most this many times the noise
 /// estimate's.
@@ -11,10 +14,12 @@ pub const NOISE_TOLERANCE: f64 = 1.15;
 /// axis, of the final residual itself) from the residual's median is a tracker outlier
 /// (a 3-D Gaussian error exceeds 6 sigma once in 10^7).
 pub const OUTLIER_SIGMAS: f64 = 6.0;
-/// Robust standard deviation from a median absolute deviation.
-const MAD_TO_SIGMA: f64 = 1.4826;
 
-/// Noise per axis from the second differences of `e` along each run.
+/// Noise per axis from the second differences of the position errors of `e` along
+/// each run. Its `rms_mm` is that of a row's whole error: `sqrt(3) sigma`, and with
+/// weighted angular columns their `k` components' noise beside it,
+/// `sqrt(3 sigma^2 + k sigma_w^2)` (`sigma_w` the position noise they were weighted
+/// against: `crate::angular`).
 pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
     let mut d2 = Vec::new();
     for run in &rec.runs {
@@ -31,53 +36,54 @@ pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
     } else {
         f64::NAN
     };
+    let rms_mm = match rec.angular {
+        None => 3f64.sqrt() * sigma,
+        Some(w) => {
+            (3.0 * sigma * sigma + (components(rec) - 3) as f64 * w.sigma_mm * w.sigma_mm).sqrt()
+        }
+    };
     Noise {
         sigma_mm_per_axis: sigma,
-        rms_mm: 3f64.sqrt() * sigma,
+        rms_mm,
         method: format!(
             "median absolute deviation of the residual's second differences along the runs \
              ({} triples of rows)",
             d2.len() / 3
         ),
+        angular: angular_report(rec, d2.len() / 3),
     }
 }
 
-/// The median of `v` (sorted in place).
-pub(crate) fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// The tracker outliers of a final residual `e` (rows of `rec`): the rows farther than
-/// [`OUTLIER_SIGMAS`] robust standard deviations both from the residual's median and
+/// The tracker outliers of a final residual `e` (rows of `rec`, angular parts
+/// included): the rows farther than [`OUTLIER_SIGMAS`] robust standard deviations both from the residual's median and
 /// from the median of their neighbours in the run ([`NEIGHBOURS`] on each side). The
 /// deviation is taken per axis from the residual's own median absolute deviation, not
 /// from the noise estimate; and a row that moves with its neighbours is structure that
 /// is left, not a tracker's jump. The rows, ascending, and the threshold, mm (infinite
 /// when the spread cannot be estimated).
-pub(crate) fn outlier_rows(rec: &Recording, e: &[[f64; 3]]) -> (Vec<usize>, f64) {
+pub(crate) fn outlier_rows(rec: &Recording, e: &[RowError]) -> (Vec<usize>, f64) {
     if e.len() < MIN_ROWS_FOR_OUTLIERS {
         return (Vec::new(), f64::INFINITY);
     }
-    let mut centre = [0.0; 3];
+    // the spread per independent component (an unweighted angular part is all zeros)
+    let dof = components(rec) as f64;
+    let mut centre = [0.0; WIDTH];
     let mut var = 0.0;
-    for a in 0..3 {
+    for a in 0..WIDTH {
         let mut v: Vec<f64> = e.iter().map(|r| r[a]).collect();
         centre[a] = median(&mut v);
         let mut dev: Vec<f64> = v.iter().map(|x| (x - centre[a]).abs()).collect();
-        var += (MAD_TO_SIGMA * median(&mut dev)).powi(2) / 3.0;
+        var += (MAD_TO_SIGMA * median(&mut dev)).powi(2) / dof;
     }
     let limit = OUTLIER_SIGMAS * var.sqrt();
     if limit.is_nan() || limit <= 0.0 {
         return (Vec::new(), f64::INFINITY);
     }
-    let dist = |v: &[f64; 3], c: &[f64; 3]| -> f64 {
-        (0..3).map(|a| (v[a] - c[a]).powi(2)).sum::<f64>().sqrt()
+    let dist = |v: &RowError, c: &RowError| -> f64 {
+        (0..WIDTH)
+            .map(|a| (v[a] - c[a]).powi(2))
+            .sum::<f64>()
+            .sqrt()
     };
     let mut rows = Vec::new();
     for run in &rec.runs {
@@ -119,4 +125,38 @@ pub(crate) fn outlier_rule() -> String {
          residual's median and from the median of its {NEIGHBOURS} neighbours on each side \
          in its run"
     )
+}
+
+/// The report's account of the angular columns of `rec` (`triples`: the row triples of
+/// the noise estimate); `None` when it has none.
+fn angular_report(rec: &Recording, triples: usize) -> Option<AngularNoise> {
+    let columns = rec.angular_columns()?;
+    Some(match rec.angular {
+        Some(w) => AngularNoise {
+            columns: columns.names().into(),
+            components: columns.components(),
+            sigma_deg: w.sigma_rad.to_degrees(),
+            mm_per_deg: w.mm_per_rad().to_radians(),
+            method: format!(
+                "median absolute deviation of the user model's angular error's second \
+                 differences along the runs ({triples} triples of rows{}); each angular \
+                 component enters the residual as mm_per_deg x its error in degrees (the \
+                 position noise over the angular noise), so the figures in mm are of the \
+                 whole row's error, positions and angles whitened alike",
+                match columns {
+                    AngularColumns::Tangent => ", in the plane normal to the measured tangent",
+                    AngularColumns::Orientation => "",
+                }
+            ),
+        },
+        None => AngularNoise {
+            columns: columns.names().into(),
+            components: 0,
+            sigma_deg: f64::NAN,
+            mm_per_deg: 0.0,
+            method: "not used: their noise (or the positions') cannot be estimated from the \
+                     data (too few rows along the runs, or none at all)"
+                .into(),
+        },
+    })
 }

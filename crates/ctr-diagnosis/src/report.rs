@@ -125,9 +125,30 @@ pub struct SuggestedRun {
 pub struct Noise {
     /// Estimated standard deviation per axis, mm.
     pub sigma_mm_per_axis: f64,
-    /// RMS of 3-D noise, `sqrt(3) sigma`, mm.
+    /// RMS of a row's noise, mm: `sqrt(3) sigma` of the 3-D position, with the weighted
+    /// angular components' beside it when the recording has some (see `angular`).
     pub rms_mm: f64,
     /// How it was estimated.
+    pub method: String,
+    /// The angular columns of the recording, when it has some: their noise and weight.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angular: Option<AngularNoise>,
+}
+
+/// The angular columns of a recording in the residual (`crate::angular`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AngularNoise {
+    /// The column set used (`qw,qx,qy,qz` or `tx,ty,tz`).
+    pub columns: String,
+    /// Angular components per row in the residual (3 for an orientation, 2 for a
+    /// tangent; 0 when not used).
+    pub components: usize,
+    /// Estimated standard deviation per angular component, degrees.
+    pub sigma_deg: f64,
+    /// mm of tip error one degree of angular error counts as (position noise over
+    /// angular noise).
+    pub mm_per_deg: f64,
+    /// How it was estimated and weighted, or why the columns are not used.
     pub method: String,
 }
 

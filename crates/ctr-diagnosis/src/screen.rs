@@ -27,6 +27,7 @@
 
 use crate::candidates::EffectId;
 use crate::fit::{projected_gain, Fitted, Problem, MAX_FIT_ITERATIONS};
+use crate::residual::components;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
@@ -186,7 +187,7 @@ impl<'a> Screen<'a> {
 
     /// Change of the information criterion for a screened `cost` with `k` parameters.
     pub fn bic(&self, cost: f64, k: usize) -> f64 {
-        let n_obs = (3 * self.rows.len()) as f64;
+        let n_obs = (components(self.rec) * self.rows.len()) as f64;
         n_obs * (cost / self.cost0).ln() + k as f64 * n_obs.ln()
     }
 

@@ -11,7 +11,7 @@ use crate::locate;
 use crate::options::Options;
 use crate::prose::{explain, parameters};
 use crate::report::{Diagnosis, Figures, Finding, Trial, REMOVED};
-use crate::residual::{errors, figures, tips};
+use crate::residual::{components, errors, figures, positions, tips, RowError};
 use crate::screen::{Screen, Screened, FULL_FITS};
 use crate::start::{sample_period, Start};
 use crate::verify;
@@ -31,7 +31,7 @@ struct Best {
     model: ModelSpec,
     fig: Figures,
     cost: f64,
-    e: Vec<[f64; 3]>,
+    e: Vec<RowError>,
 }
 
 /// The trial of a candidate that was not fitted, and why.
@@ -67,6 +67,9 @@ pub fn diagnose(
     rec: &Recording,
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
+    // the angular columns weighted by their noise: the one residual of every step
+    let weighted = crate::weighting::weighted(model, rec)?;
+    let rec: &Recording = &weighted;
     let start = Start::new(model, rec, &opt.holdout, opt.threads, opt.warn_margin)?;
     let (held, all_runs, fit_rows) = (&start.held, &start.all_runs, &start.fit_rows);
     let (e0, baseline) = (&start.e0, start.baseline);
@@ -74,7 +77,7 @@ pub fn diagnose(
     let huber = start.huber_mm();
     let threads = ctr_formats::parallel::resolve_threads(opt.threads);
     let period = sample_period(rec);
-    let n_obs = (3 * fit_rows.len()) as f64;
+    let n_obs = (components(rec) * fit_rows.len()) as f64;
 
     let mut current = model.clone();
     let mut current_fig = baseline;
@@ -159,7 +162,7 @@ pub fn diagnose(
                 .and_then(|f| {
                     let m = p.model(&f.x);
                     let pred = predict(&m, rec, all_runs).ok()?;
-                    Some((f, m, errors(rec, &pred.p)))
+                    Some((f, m, errors(rec, &pred)))
                 });
             let Some((fitted, m, e)) = fitted else {
                 verdicts.push(not_fitted(round, c, CANNOT_SIMULATE.into()));
@@ -205,7 +208,7 @@ pub fn diagnose(
         // the others judged on their screen: the model with its screened parameters
         let screen_errors = ctr_formats::parallel::map(&on_screen, threads, |(r, _)| {
             let pred = predict(&screen.model(r.effect, &r.x), rec, all_runs).ok()?;
-            Some(errors(rec, &pred.p))
+            Some(errors(rec, &pred))
         });
         for ((r, note), e) in on_screen.into_iter().zip(screen_errors) {
             let Some(e) = e else {
@@ -262,7 +265,7 @@ pub fn diagnose(
                 let mj = p.model(&f.x);
                 match predict(&mj, rec, all_runs) {
                     Ok(pred) => {
-                        let ej = errors(rec, &pred.p);
+                        let ej = errors(rec, &pred);
                         (mj, figures(&ej, held), f.cost, ej)
                     }
                     Err(_) => (m, fig, cost, e),
@@ -358,7 +361,7 @@ pub fn diagnose(
         let Ok(pred) = predict(&m, rec, all_runs) else {
             break;
         };
-        current_e = errors(rec, &pred.p);
+        current_e = errors(rec, &pred);
         current_fig = figures(&current_e, held);
         for f in &mut findings {
             f.parameters = parameters(f.effect, &m);
@@ -379,7 +382,7 @@ pub fn diagnose(
         final_pred.failed,
         assessed,
         |fit_mask| {
-            let statements = locate::locate(rec, &current_e, fit_mask, &final_pred.p);
+            let statements = locate::locate(rec, &positions(&current_e), fit_mask, &final_pred.p);
             let mut out = locate::summary(&statements);
             if let Some(c) = statements
                 .iter()

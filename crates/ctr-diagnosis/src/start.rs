@@ -8,7 +8,7 @@ use crate::locate::{self, Statement};
 use crate::noise::{estimate_noise, median, outlier_rows, outlier_rule, NOISE_TOLERANCE};
 use crate::prose::leftover;
 use crate::report::{Diagnosis, Figures, Finding, Noise, Report, Split, Trial};
-use crate::residual::{errors, figures, inlier_figures};
+use crate::residual::{errors, figures, inlier_figures, positions, RowError};
 use crate::split::{split, Holdout};
 use crate::stability::{checked_warn_margin, Stability};
 use crate::suggest;
@@ -33,7 +33,7 @@ pub(crate) struct Start {
     /// The rows fitted.
     pub(crate) fit_rows: Vec<usize>,
     /// The user model's error vectors, every row.
-    pub(crate) e0: Vec<[f64; 3]>,
+    pub(crate) e0: Vec<RowError>,
     /// The user model's figures.
     pub(crate) baseline: Figures,
     /// The noise estimated on the user model's error.
@@ -66,12 +66,12 @@ impl Start {
         let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
         let base = predict(model, rec, &all_runs)
             .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-        let e0 = errors(rec, &base.p);
+        let e0 = errors(rec, &base);
         let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
         Ok(Start {
             baseline: figures(&e0, &held),
-            noise: estimate_noise(rec, &e0),
-            located: locate::locate(rec, &e0, &fit_mask, &base.p),
+            noise: estimate_noise(rec, &positions(&e0)),
+            located: locate::locate(rec, &positions(&e0), &fit_mask, &base.p),
             held,
             split_method,
             all_runs,
@@ -106,7 +106,7 @@ impl Start {
         fitted: ModelSpec,
         mut findings: Vec<Finding>,
         final_: Figures,
-        e: &[[f64; 3]],
+        e: &[RowError],
         margin: &[f64],
         tried: Vec<Trial>,
         failed_rows: usize,
@@ -130,7 +130,7 @@ impl Start {
         let next =
             assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
         let (suggested_run, suggested_joints) = next.unzip();
-        let again = estimate_noise(rec, e);
+        let again = estimate_noise(rec, &positions(e));
         let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis
             || !self.noise.sigma_mm_per_axis.is_finite()
         {

@@ -212,6 +212,7 @@ fn as_recording(rec: &Recording, name: &str, q: &[Vec<f64>], period_s: f64) -> R
                 q: q.clone(),
                 p: [0.0; 3],
                 quaternion: None,
+                tangent: None,
                 force_n: [0.0; 3],
             })
             .collect(),
@@ -221,6 +222,7 @@ fn as_recording(rec: &Recording, name: &str, q: &[Vec<f64>], period_s: f64) -> R
         }],
         has_time: rec.has_time,
         has_force: false,
+        angular: None,
     }
 }
 

@@ -15,10 +15,13 @@
 //! [`SynthSpec::run_gap_s`] apart. The tracker adds Gaussian noise of
 //! [`SynthSpec::noise_sigma_mm`] per axis and, on a few rows
 //! ([`SynthSpec::outlier_fraction`]), a jump of [`SynthSpec::outlier_size_mm`] in a random
-//! direction. Everything random comes from one seeded generator ([`Rng`]): the same
-//! inputs give the same recording bit for bit. [`write_csv`] writes the result as the
-//! contract's recording (`t_s,run,s1_mm,theta1_deg,...,x_mm,y_mm,z_mm`) for `ctr-cli
-//! diagnose`.
+//! direction. With [`SynthSpec::angular`] it also measures the tip frame
+//! (`qw,qx,qy,qz`) or the tip's tangent (`tx,ty,tz`), turned by a Gaussian rotation of
+//! [`SynthSpec::angular_noise_sigma_deg`] per component (a tangent's in the plane normal
+//! to it), drawn after everything else. Everything random comes from one seeded
+//! generator ([`Rng`]): the same inputs give the same recording bit for bit.
+//! [`write_csv`] writes the result as the contract's recording
+//! (`t_s,run,s1_mm,theta1_deg,...,x_mm,y_mm,z_mm`) for `ctr-cli diagnose`.
 //!
 //! ```
 //! use ctr_formats::{Effects, Latency, RobotSpec};
@@ -64,7 +67,7 @@ use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
 use ctr_analysis::simulate::{predict, SimError};
 use ctr_formats::joint_columns;
-use ctr_formats::{format_float, RecordedRow, Recording, Run};
+use ctr_formats::{format_float, AngularColumns, RecordedRow, Recording, Run};
 use std::io::{self, Write};
 
 /// Tracker noise of the shared recordings, standard deviation per axis, mm.
@@ -87,6 +90,9 @@ pub const DEFAULT_WALK_ROWS: usize = 300;
 pub const DEFAULT_WALK_FEED_STEP_MM: f64 = 3.0;
 /// Standard deviation of a random-walk step of each rotation, degrees.
 pub const DEFAULT_WALK_ROTATION_STEP_DEG: f64 = 12.0;
+/// Noise of a measured orientation or tangent, standard deviation per angular
+/// component, degrees (an electromagnetic tracker's order).
+pub const DEFAULT_ANGULAR_NOISE_SIGMA_DEG: f64 = 0.3;
 /// Size of an outlier's jump, mm.
 pub const DEFAULT_OUTLIER_SIZE_MM: f64 = 5.0;
 /// One full turn, degrees.
@@ -196,6 +202,10 @@ pub struct SynthSpec {
     /// Effects outside the contract's vocabulary acting in the world (none by default):
     /// what a real robot holds beyond any model's effects.
     pub unmodelled: Vec<Unmodelled>,
+    /// The angular columns the tracker measures besides the tip (none by default).
+    pub angular: Option<AngularColumns>,
+    /// Their noise, standard deviation per angular component, degrees.
+    pub angular_noise_sigma_deg: f64,
 }
 
 impl Default for SynthSpec {
@@ -216,6 +226,8 @@ impl Default for SynthSpec {
             walk_rotation_step_deg: DEFAULT_WALK_ROTATION_STEP_DEG,
             file: "synthetic.csv".into(),
             unmodelled: Vec::new(),
+            angular: None,
+            angular_noise_sigma_deg: DEFAULT_ANGULAR_NOISE_SIGMA_DEG,
         }
     }
 }
@@ -493,6 +505,7 @@ fn measure(
                 q: q.clone(),
                 p: [0.0; 3],
                 quaternion: None,
+                tangent: None,
                 force_n: [0.0; 3],
             });
         }
@@ -509,6 +522,7 @@ fn measure(
         runs,
         has_time: true,
         has_force: false,
+        angular: None,
     };
     let all: Vec<usize> = (0..recording.runs.len()).collect();
     // the world moves with the actual joints; the recording keeps the commanded ones
@@ -557,6 +571,12 @@ fn measure(
     for ((row, p), e) in recording.rows.iter_mut().zip(&pred.p).zip(&noise) {
         row.p = [p[0] + e[0], p[1] + e[1], p[2] + e[2]];
     }
+    if let Some(columns) = spec.angular {
+        let sigma = spec.angular_noise_sigma_deg.to_radians();
+        for (row, q) in recording.rows.iter_mut().zip(&pred.q) {
+            crate::angular::measure(row, columns, q, sigma, rng);
+        }
+    }
     Ok(Synthetic {
         recording,
         clean: pred.p,
@@ -567,8 +587,8 @@ fn measure(
 }
 
 /// Writes a recording as the contract's recording CSV: `t_s,run`, the joint columns,
-/// `x_mm,y_mm,z_mm`, then `qw,qx,qy,qz` when every row has an orientation and
-/// `fx_n,fy_n,fz_n` when the recording has forces. Numbers in Rust's shortest
+/// `x_mm,y_mm,z_mm`, then `qw,qx,qy,qz` when every row has an orientation, `tx,ty,tz`
+/// when every row has a tangent and `fx_n,fy_n,fz_n` when the recording has forces. Numbers in Rust's shortest
 /// round-trip form ([`format_float`]): [`Recording::read`] gives the same rows back.
 ///
 /// ```
@@ -588,6 +608,10 @@ pub fn write_csv(rec: &Recording, out: impl Write) -> io::Result<()> {
     if quaternions {
         header.extend(["qw", "qx", "qy", "qz"].map(String::from));
     }
+    let tangents = !rec.rows.is_empty() && rec.rows.iter().all(|r| r.tangent.is_some());
+    if tangents {
+        header.extend(["tx", "ty", "tz"].map(String::from));
+    }
     if rec.has_force {
         header.extend(["fx_n", "fy_n", "fz_n"].map(String::from));
     }
@@ -604,6 +628,9 @@ pub fn write_csv(rec: &Recording, out: impl Write) -> io::Result<()> {
         record.extend(row.p.iter().map(|&v| format_float(v)));
         if let (true, Some(q)) = (quaternions, row.quaternion) {
             record.extend(q.iter().map(|&v| format_float(v)));
+        }
+        if let (true, Some(t)) = (tangents, row.tangent) {
+            record.extend(t.iter().map(|&v| format_float(v)));
         }
         if rec.has_force {
             record.extend(row.force_n.iter().map(|&v| format_float(v)));

@@ -50,7 +50,7 @@ use crate::hybrid;
 use crate::noise::NOISE_TOLERANCE;
 use crate::options::Checks;
 use crate::quantiles::{chi2_95, Z975};
-use crate::residual::{errors, figures, tips};
+use crate::residual::{errors, figures, positions, tips, with_angles, RowError};
 use crate::uncertainty::{self, Assessment};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
@@ -148,30 +148,33 @@ impl<'a> Context<'a> {
         }
     }
 
-    fn errors_of(&self, m: &ModelSpec) -> Option<Vec<[f64; 3]>> {
+    fn errors_of(&self, m: &ModelSpec) -> Option<Vec<RowError>> {
         let all: Vec<usize> = (0..self.rec.runs.len()).collect();
         predict(m, self.rec, &all)
             .ok()
-            .map(|p| errors(self.rec, &p.p))
+            .map(|p| errors(self.rec, &p))
     }
 
     /// Held-out RMS of `e` after the best `k`-term generic correction in the joints
-    /// and time fitted to it.
-    fn empirical_heldout(&self, e: &[[f64; 3]], k: usize) -> f64 {
+    /// and time fitted to its positions (the angular errors stay).
+    fn empirical_heldout(&self, e_row: &[RowError], k: usize) -> f64 {
+        let e = &positions(e_row);
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         let terms = empirical::pursue(&self.yardstick, e, &w, k);
-        figures(&empirical::subtract(&self.yardstick, &terms, e), self.held).heldout_rms_mm
+        let left = empirical::subtract(&self.yardstick, &terms, e);
+        figures(&with_angles(&left, e_row), self.held).heldout_rms_mm
     }
 
     /// The size of the generic correction (joints and time) that cross-validation on
     /// the fit rows gives `e`: what is left that a generic term takes, whatever it is.
-    fn generic_size(&self, e: &[[f64; 3]]) -> usize {
+    fn generic_size(&self, e_row: &[RowError]) -> usize {
+        let e = &positions(e_row);
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         hybrid::choose_size(&self.yardstick, e, &w)
     }
 
     /// Checks finding `c` of `m` (whose error is `e`, held-out RMS `h`).
-    pub(crate) fn check(&self, m: &ModelSpec, e: &[[f64; 3]], c: EffectId) -> Checked {
+    pub(crate) fn check(&self, m: &ModelSpec, e: &[RowError], c: EffectId) -> Checked {
         let n = m.robot.n_tubes();
         let k = c.n_params(n);
         let h = figures(e, self.held).heldout_rms_mm;
@@ -273,9 +276,11 @@ impl<'a> Context<'a> {
     fn proportional(
         &self,
         m: &ModelSpec,
-        e: &[[f64; 3]],
+        e_row: &[RowError],
         c: EffectId,
     ) -> Option<(String, f64, f64)> {
+        // fitted to the positions (the tip directions `J_c`); the angular errors stay
+        let e = &positions(e_row);
         let rows = self.rec.rows.len();
         let problem = Problem {
             base: m.clone(),
@@ -295,7 +300,7 @@ impl<'a> Context<'a> {
         let constant: Vec<Field> = (0..k)
             .map(|j| (0..rows).map(|r| direction(j, r)).collect())
             .collect();
-        let basis = Basis::raw(self.rec, &tips(self.rec, e));
+        let basis = Basis::raw(self.rec, &tips(self.rec, e_row));
         let mut fields: Vec<Field> = Vec::new();
         let mut names = Vec::new();
         for j in 0..k {
@@ -310,7 +315,8 @@ impl<'a> Context<'a> {
         }
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         let heldout = |fields: &[Field], terms: &[(usize, f64)]| {
-            figures(&empirical::subtract(fields, terms, e), self.held).heldout_rms_mm
+            let left = empirical::subtract(fields, terms, e);
+            figures(&with_angles(&left, e_row), self.held).heldout_rms_mm
         };
         let all: Vec<usize> = (0..k).collect();
         let h_const = heldout(&constant, &empirical::coefficients(&constant, &all, e, &w));
