@@ -23,8 +23,9 @@ pub struct Recording {
 }
 
 /// What a pickled `Recording` holds: file, tube count, whether it has times and
-/// forces, then per row its line, time, joints, tip, quaternion and tangent (if
-/// recorded) and force, and the runs as (label, first row, end row).
+/// forces, then per row its line, time, joints, tip, quaternion (if recorded) and
+/// force, the runs as (label, first row, end row), and last the tangents (if
+/// recorded).
 type State = (
     String,
     usize,
@@ -35,9 +36,9 @@ type State = (
     Vec<f64>,
     Vec<f64>,
     Option<Vec<f64>>,
-    Option<Vec<f64>>,
     Vec<f64>,
     Vec<(String, usize, usize)>,
+    Option<Vec<f64>>,
 );
 
 /// A `(m, k)` array of one value block per row.
@@ -125,9 +126,9 @@ impl Recording {
             q,
             p,
             quaternion,
-            tangent,
             force,
             runs,
+            tangent,
         ) = s;
         let (n, m) = (*n_tubes, lines.len());
         if !(1..=MAX_TUBES).contains(&n) {
@@ -217,16 +218,16 @@ impl Recording {
                 .map(|x| x.quaternion)
                 .collect::<Option<Vec<_>>>()
                 .map(|v| v.into_iter().flatten().collect()),
-            r.rows
-                .iter()
-                .map(|x| x.tangent)
-                .collect::<Option<Vec<_>>>()
-                .map(|v| v.into_iter().flatten().collect()),
             r.rows.iter().flat_map(|x| x.force_n).collect(),
             r.runs
                 .iter()
                 .map(|x| (x.label.clone(), x.rows.start, x.rows.end))
                 .collect(),
+            r.rows
+                .iter()
+                .map(|x| x.tangent)
+                .collect::<Option<Vec<_>>>()
+                .map(|v| v.into_iter().flatten().collect()),
         );
         Ok((slf.get_type().getattr("_from_state")?, (state,)))
     }
