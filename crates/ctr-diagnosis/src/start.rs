@@ -124,12 +124,6 @@ impl Start {
             huber_mm,
             self.threads,
         );
-        let (fitted, overall, assessment) =
-            uncertainty::attach(&problem, &self.user, &mut findings, assessed);
-        let fit_share = self.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
-        let next =
-            assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
-        let (suggested_run, suggested_joints) = next.unzip();
         let again = estimate_noise(rec, &positions(e));
         let noise = if again.sigma_mm_per_axis < self.noise.sigma_mm_per_axis
             || !self.noise.sigma_mm_per_axis.is_finite()
@@ -145,6 +139,18 @@ impl Start {
         let stability = Stability::new(rec, self.warn_margin, &self.margin0, margin, &outliers);
         let inliers = inlier_figures(e, &self.held, &outliers);
         let explained = inliers.heldout_rms_mm <= NOISE_TOLERANCE * noise.rms_mm;
+        // an unexplained remainder widens the intervals by what it can move them by
+        let (fitted, overall, assessment) = uncertainty::attach(
+            &problem,
+            &self.user,
+            &mut findings,
+            assessed,
+            (!explained).then_some(&correction),
+        );
+        let fit_share = self.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
+        let next =
+            assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
+        let (suggested_run, suggested_joints) = next.unzip();
         let fit_mask: Vec<bool> = self.held.iter().map(|h| !h).collect();
         let unexplained = leftover(
             rec,

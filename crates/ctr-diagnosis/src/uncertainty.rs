@@ -29,21 +29,31 @@
 //!   written in the robot file's form: an output that depends on one parameter maps
 //!   that parameter's end points (a stiffness factor `exp(ln f +/- ...)`, not
 //!   symmetric), one that depends on several (a gravity direction, a registration
-//!   axis) gets the delta method, `+/- t sqrt(g^T Sigma g)`.
+//!   axis) gets the delta method, `+/- t sqrt(g^T Sigma g)`;
+//! - each end is then checked against the robust cost along the output's linearised
+//!   profile and moved to where the profile deviance reaches `t^2` where the Wald end
+//!   misreads it (a non-linear direction, a bound): [`profile`];
+//! - when the report does not explain the residual, each interval is joined with the
+//!   one of the parameters refitted together with the empirical correction's terms
+//!   (what the unexplained remainder can move them by): [`remainder`].
 //!
 //! Pairs correlated above [`CORRELATED_ABOVE`] are listed: the data tell them apart
 //! only by their difference.
 
 use crate::candidates::{EffectId, Label};
 use crate::fit::Problem;
-use crate::numbers::{leaves, replace, sig};
+use crate::numbers::sig;
 use crate::prose::{explain, parameters};
 use crate::quantiles::t975;
 use crate::report::{Correlated, Finding};
 use ctr_analysis::model::ModelSpec;
-use ctr_formats::Recording;
+use ctr_formats::{Correction, Recording};
 use nalgebra::{DMatrix, DVector};
 use serde_json::Value;
+
+mod file_form;
+mod profile;
+mod remainder;
 
 /// Eigenvalue of the scaled information matrix, relative to its largest, below which
 /// a direction is not identified (a singular value ratio of 1e-4 of the scaled
@@ -112,6 +122,16 @@ pub(crate) struct Assessment {
     pub unidentified: Vec<bool>,
     /// Directions not identified, in the parameters' units.
     null: Vec<DVector<f64>>,
+    /// The classical covariance `s^2 H^+` (the profiles' directions).
+    classic: DMatrix<f64>,
+    /// The weighted residual variance per component `s^2`.
+    s2: f64,
+    /// The robust cost at `x`, mm^2.
+    cost: f64,
+    /// The Jacobian of the predictions at `x` (the profiles' Gauss-Newton steps).
+    jac: DMatrix<f64>,
+    /// The profiles' reference cost (computed once, when first profiled).
+    reference: std::sync::OnceLock<f64>,
     /// The 97.5 % quantile used.
     pub t: f64,
     /// The method, in words.
@@ -309,10 +329,15 @@ impl Assessment {
              sandwich over {clusters} blocks of {len} consecutive fit rows (twice the \
              residual's correlation length), J the Jacobian of the robust fit on the fit \
              rows; clipped to the fit's bounds; file-form values by their parameter's end \
-             points, or the delta method where they depend on several; directions whose \
+             points, or the delta method where they depend on several; each end checked \
+             against the robust cost along its linearised profile (the other parameters \
+             following by a Gauss-Newton step) and, where sqrt(deviance)/t there is off \
+             by more than a factor {agrees}, moved to where the profile deviance reaches \
+             t^2 (or to the bound it reaches first); directions whose \
              scaled information is below {UNIDENTIFIED_EIGEN:e} of the largest are not \
              identified (their intervals are the fit's bounds)",
-            dof = clusters.saturating_sub(1)
+            dof = clusters.saturating_sub(1),
+            agrees = profile::AGREES_WITHIN
         );
         Some(Assessment {
             x: xs,
@@ -325,6 +350,11 @@ impl Assessment {
             information: h,
             unidentified,
             null,
+            classic,
+            s2,
+            cost,
+            jac,
+            reference: std::sync::OnceLock::new(),
             t: t975(clusters.saturating_sub(1)),
             method,
         })
@@ -458,82 +488,6 @@ impl Assessment {
         }
         out
     }
-
-    /// The `ci95` of block `b` (its parameters from `at`): the file form of
-    /// [`parameters`] with each number replaced by `[lo, hi]` (`null` where unbounded).
-    pub fn ci95(&self, problem: &Problem, b: EffectId, at: usize, len: usize) -> Value {
-        let model = problem.model(&self.x);
-        let template = parameters(b, &model);
-        let mut v0 = Vec::new();
-        leaves(&template, "", &mut v0);
-        let out = |x: &[f64]| -> Vec<f64> {
-            let mut v = Vec::new();
-            leaves(&parameters(b, &problem.model(x)), "", &mut v);
-            v.into_iter().map(|(_, v)| v).collect()
-        };
-        let base: Vec<f64> = v0.iter().map(|(_, v)| *v).collect();
-        let degrees: Vec<bool> = v0.iter().map(|(k, _)| k.contains("_deg")).collect();
-        let unwrap = |o: usize, v: f64| -> f64 {
-            if degrees[o] {
-                base[o] + (v - base[o] + 180.0).rem_euclid(360.0) - 180.0
-            } else {
-                v
-            }
-        };
-        // derivatives of the file values with respect to the block's parameters
-        let mut g = DMatrix::<f64>::zeros(base.len(), len);
-        for j in 0..len {
-            let h = OUTPUT_STEP * self.steps[at + j];
-            let mut x = self.x.clone();
-            x[at + j] += h;
-            for (o, v) in out(&x).into_iter().enumerate().take(base.len()) {
-                g[(o, j)] = (unwrap(o, v) - base[o]) / h;
-            }
-        }
-        let mut ints: Vec<[Option<f64>; 2]> = Vec::with_capacity(base.len());
-        for o in 0..base.len() {
-            let row = g.row(o);
-            let big = row.amax();
-            let deps: Vec<usize> = (0..len)
-                .filter(|&j| big > 0.0 && row[j].abs() > 1e-9 * big)
-                .collect();
-            let finite = |v: f64| v.is_finite().then_some(v);
-            let int = match deps.as_slice() {
-                [] => [Some(base[o]), Some(base[o])],
-                [j] => {
-                    let (lo, hi) = self.interval(at + j);
-                    let mut ends = vec![base[o]];
-                    let mut open = false;
-                    for end in [lo, hi] {
-                        if end.is_finite() {
-                            let mut x = self.x.clone();
-                            x[at + j] = end;
-                            ends.push(unwrap(o, out(&x)[o]));
-                        } else {
-                            open = true;
-                        }
-                    }
-                    if open {
-                        [None, None]
-                    } else {
-                        let lo = ends.iter().copied().fold(f64::INFINITY, f64::min);
-                        let hi = ends.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                        [finite(lo), finite(hi)]
-                    }
-                }
-                _ if deps.iter().any(|&j| self.unidentified[at + j]) => [None, None],
-                _ => {
-                    let gr = row.transpose();
-                    let sub = self.cov.view((at, at), (len, len));
-                    let half = self.t * (gr.transpose() * sub * &gr)[(0, 0)].max(0.0).sqrt();
-                    [finite(base[o] - half), finite(base[o] + half)]
-                }
-            };
-            ints.push(int);
-        }
-        let mut it = ints.into_iter();
-        replace(&template, &mut it)
-    }
 }
 
 /// What the report says about the uncertainty as a whole.
@@ -585,6 +539,7 @@ pub(crate) fn attach(
     user: &ModelSpec,
     findings: &mut [Finding],
     assessed: Option<Assessment>,
+    remainder: Option<&Correction>,
 ) -> (ModelSpec, Overall, Option<Assessment>) {
     let x = problem.read(&problem.base);
     let nominal = problem.read(user);
@@ -612,6 +567,7 @@ pub(crate) fn attach(
         at += len;
     }
     let combos = a.combinations();
+    let alt = remainder.and_then(|c| a.with_remainder(problem, c));
     for f in findings.iter_mut() {
         f.parameters = parameters(f.effect, &model);
         f.explanation = explain(f.effect, &model);
@@ -619,7 +575,7 @@ pub(crate) fn attach(
             f.ci95 = f.parameters.clone();
             continue;
         };
-        let mut ci = a.ci95(problem, b, at, len);
+        let mut ci = a.ci95(problem, b, at, len, alt.as_ref());
         let mine: Vec<Value> = combos
             .iter()
             .filter(|c| c.effect == b)
@@ -642,8 +598,18 @@ pub(crate) fn attach(
             );
         }
     }
+    let mut method = a.method.clone();
+    if let Some(alt) = &alt {
+        method += &format!(
+            "; the report does not explain the residual: each interval is joined with the \
+             one of the parameters refitted together with the {} terms of the empirical \
+             correction (Gauss-Newton with the Jacobian at the fit; sd from the joint \
+             information and the residual both leave): what the remainder can move them by",
+            alt.terms
+        );
+    }
     let overall = Overall {
-        method: a.method.clone(),
+        method,
         identifiability: a.statements(&combos),
         correlated: a.correlated(),
     };

@@ -724,9 +724,9 @@ fn public_truth(world: &serde_json::Value, effect: &str, n: usize) -> Option<ser
     })
 }
 
-/// Over seeded recordings with realistic effects of the vocabulary, and over the
-/// public recordings, the truth lies in the reported `ci95` for at least 85 % of the
-/// scalar parameters, and the median half-width is at most a quarter of the
+/// Over seeded recordings with realistic effects of the vocabulary (alone), and over
+/// them and the public recordings together, the truth lies in the reported `ci95` for
+/// at least 85 % of the scalar parameters, and the median half-width is at most a quarter of the
 /// parameter's size plus a small floor. Where only a combination is identified
 /// (stiffness factors: their ratio), the combination counts instead of the factors.
 #[test]
@@ -870,6 +870,14 @@ fn intervals_hold_the_truth_over_seeds() {
         public.total >= 10,
         "{} public parameters compared",
         public.total
+    );
+    // the seeded recordings alone and both together; the public recordings alone are
+    // not yet held to it (16 of 20: see the README's table for the misses)
+    let seeded_coverage = seeded.inside as f64 / seeded.total.max(1) as f64;
+    assert!(
+        seeded_coverage >= MIN_COVERAGE,
+        "seeded coverage {seeded_coverage:.3}: {:#?}",
+        seeded.misses
     );
     assert!(
         coverage >= MIN_COVERAGE,
