@@ -219,6 +219,14 @@ fn correlation_length(r: &[[f64; 3]], segs: &[std::ops::Range<usize>]) -> usize 
 }
 
 impl Assessment {
+    /// `x` with each parameter clipped to the fit's bounds.
+    pub(crate) fn clamped(&self, mut x: Vec<f64>) -> Vec<f64> {
+        for (v, &(lo, hi)) in x.iter_mut().zip(&self.bounds) {
+            *v = v.clamp(lo, hi);
+        }
+        x
+    }
+
     /// The uncertainty of `problem`'s fit at `x` (`None` when it cannot be simulated
     /// there or has no parameter); `nominal` is what the parameters are without the
     /// findings (the user's model).

@@ -74,12 +74,7 @@ impl Assessment {
                 let e = problem.errors(&p);
                 let (_, w) = problem.cost(&e);
                 let step = -(&self.classic / self.s2) * self.gradient(&e, &w);
-                let x: Vec<f64> = (0..self.x.len())
-                    .map(|k| {
-                        let (lo, hi) = self.bounds[k];
-                        (self.x[k] + step[k]).clamp(lo, hi)
-                    })
-                    .collect();
+                let x = self.clamped((0..self.x.len()).map(|k| self.x[k] + step[k]).collect());
                 problem.cost_at(&x)
             });
             stepped.map_or(self.cost, |c| c.min(self.cost))
@@ -125,25 +120,17 @@ impl Assessment {
         let h_pinv = &self.classic / self.s2;
         let ha = &h_pinv * a;
         let a_ha = a.dot(&ha);
-        let clamp = |x: &mut [f64]| {
-            for (k, v) in x.iter_mut().enumerate() {
-                let (lo, hi) = self.bounds[k];
-                *v = v.clamp(lo, hi);
-            }
-        };
         let reference = self.reference(problem);
         // the deviance at `d` and the point reached
         let deviance = |d: f64| -> Option<(f64, Vec<f64>)> {
-            let mut x1: Vec<f64> = (0..np).map(|k| self.x[k] + d * dir[k]).collect();
-            clamp(&mut x1);
+            let x1 = self.clamped((0..np).map(|k| self.x[k] + d * dir[k]).collect());
             let e = problem.errors(&problem.predictions(&x1)?);
             let (c1, w) = problem.cost(&e);
             // one Gauss-Newton step of the others, g held, with the Jacobian at x
             let r = self.gradient(&e, &w);
             let lambda = if a_ha > 0.0 { ha.dot(&r) / a_ha } else { 0.0 };
             let step = -(&h_pinv * (r - a * lambda));
-            let mut x2: Vec<f64> = (0..np).map(|k| x1[k] + step[k]).collect();
-            clamp(&mut x2);
+            let x2 = self.clamped((0..np).map(|k| x1[k] + step[k]).collect());
             let (c, x) = match problem.cost_at(&x2) {
                 Some(c2) if c2 < c1 => (c2, x2),
                 _ => (c1, x1),

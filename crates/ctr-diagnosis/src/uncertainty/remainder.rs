@@ -89,12 +89,7 @@ impl Assessment {
         let (mut sse, mut step) = joint(&e);
         let mut x = self.x.clone();
         for _ in 0..MAX_STEPS {
-            let next: Vec<f64> = (0..np)
-                .map(|j| {
-                    let (lo, hi) = self.bounds[j];
-                    (x[j] + step[j]).clamp(lo, hi)
-                })
-                .collect();
+            let next = self.clamped((0..np).map(|j| x[j] + step[j]).collect());
             let Some(p) = problem.predictions(&next) else {
                 break;
             };
