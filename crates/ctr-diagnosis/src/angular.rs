@@ -23,13 +23,10 @@
 //! `crate::residual` forms the residual). With an orientation, a tangent is not used
 //! again (the orientation holds it: its z axis).
 
-use crate::robust::{median, MAD_TO_SIGMA};
+use crate::robust::sigma_of_second_differences;
 use ctr_analysis::simulate::Prediction;
 use ctr_formats::{AngularColumns, RecordedRow, Recording};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
-
-/// Fewest second differences (components) for a noise estimate, as for the positions.
-const MIN_SECOND_DIFFERENCES: usize = 9;
 
 /// The small rotation (rad, measuring frame) from row `r`'s measured angular column
 /// set `columns` to the predicted tip frame `q_pred` (`w, x, y, z`); zeros when the
@@ -116,12 +113,7 @@ pub(crate) fn estimate(
             }
         }
     }
-    if d2.len() < MIN_SECOND_DIFFERENCES {
-        return (f64::NAN, triples);
-    }
-    let med = median(&mut d2.clone());
-    let mut dev: Vec<f64> = d2.iter().map(|v| (v - med).abs()).collect();
-    (MAD_TO_SIGMA * median(&mut dev) / 6f64.sqrt(), triples)
+    (sigma_of_second_differences(&d2), triples)
 }
 
 /// The axis of the measuring frame least aligned with `t`.

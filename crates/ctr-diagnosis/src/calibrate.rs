@@ -45,9 +45,9 @@ pub fn calibrate(
         }
     }
     // the angular columns weighted by their noise: the one residual of the fits
-    let weighted = crate::weighting::weighted(model, rec)?;
+    let (weighted, base) = crate::start::simulated(model, rec)?;
     let rec: &Recording = &weighted;
-    let start = Start::new(model, rec, &opt.holdout, opt.threads, opt.warn_margin)?;
+    let start = Start::new(model, rec, base, &opt.holdout, opt.threads, opt.warn_margin)?;
     let n = model.robot.n_tubes();
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {

@@ -4,7 +4,7 @@
 use crate::report::{AngularNoise, Noise};
 use crate::residual::{components, RowError, WIDTH};
 pub(crate) use crate::robust::median;
-use crate::robust::MAD_TO_SIGMA;
+use crate::robust::{sigma_of_second_differences, MAD_TO_SIGMA};
 use ctr_formats::{AngularColumns, Recording};
 
 /// What is left counts as noise when its RMS is at most this many times the noise
@@ -29,13 +29,7 @@ pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
             }
         }
     }
-    let sigma = if d2.len() >= 9 {
-        let med = median(&mut d2.clone());
-        let mut dev: Vec<f64> = d2.iter().map(|v| (v - med).abs()).collect();
-        MAD_TO_SIGMA * median(&mut dev) / 6f64.sqrt()
-    } else {
-        f64::NAN
-    };
+    let sigma = sigma_of_second_differences(&d2);
     let rms_mm = match rec.angular {
         None => 3f64.sqrt() * sigma,
         Some(w) => {

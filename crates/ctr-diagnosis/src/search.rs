@@ -68,9 +68,9 @@ pub fn diagnose(
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
     // the angular columns weighted by their noise: the one residual of every step
-    let weighted = crate::weighting::weighted(model, rec)?;
+    let (weighted, base) = crate::start::simulated(model, rec)?;
     let rec: &Recording = &weighted;
-    let start = Start::new(model, rec, &opt.holdout, opt.threads, opt.warn_margin)?;
+    let start = Start::new(model, rec, base, &opt.holdout, opt.threads, opt.warn_margin)?;
     let (held, all_runs, fit_rows) = (&start.held, &start.all_runs, &start.fit_rows);
     let (e0, baseline) = (&start.e0, start.baseline);
     let n = model.robot.n_tubes();

@@ -13,9 +13,11 @@ use crate::split::{split, Holdout};
 use crate::stability::{checked_warn_margin, Stability};
 use crate::suggest;
 use crate::uncertainty::{self, Assessment};
+use crate::weighting;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::{predict, Prediction};
 use ctr_formats::Recording;
+use std::borrow::Cow;
 
 /// Huber threshold of the robust cost, in estimated noise standard deviations per
 /// axis (a 3-D noise vector is below 4 sigma 99.9 % of the time).
@@ -50,11 +52,25 @@ pub(crate) struct Start {
     pub(crate) warn_margin: f64,
 }
 
+/// `model`'s prediction of every run of `rec`, and `rec` with its angular columns
+/// weighted from it (`crate::weighting`): what [`Start::new`] starts from.
+pub(crate) fn simulated<'a>(
+    model: &ModelSpec,
+    rec: &'a Recording,
+) -> Result<(Cow<'a, Recording>, Prediction), DiagnoseError> {
+    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let base = predict(model, rec, &all_runs)
+        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
+    Ok((weighting::weighted(rec, &base), base))
+}
+
 impl Start {
-    /// The split of `rec` by `holdout` and `model`'s error on it.
+    /// The split of `rec` by `holdout` and `model`'s error on it, `base` its prediction
+    /// of every run ([`simulated`]).
     pub(crate) fn new(
         model: &ModelSpec,
         rec: &Recording,
+        base: Prediction,
         holdout: &Holdout,
         threads: usize,
         warn_margin: f64,
@@ -64,8 +80,6 @@ impl Start {
         let (held, split_method) = split(rec, holdout)?;
         let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
         let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
-        let base = predict(model, rec, &all_runs)
-            .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
         let e0 = errors(rec, &base);
         let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
         Ok(Start {

@@ -3,37 +3,29 @@
 //! ([`AngularWeight`]) that makes its residual whiten them alike (`crate::angular`).
 
 use crate::angular;
-use crate::error::DiagnoseError;
 use crate::noise::estimate_noise;
 use crate::residual::{errors, positions};
-use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::Prediction;
 use ctr_formats::{AngularWeight, Recording};
 use std::borrow::Cow;
 
 /// `rec` with its angular columns weighted for the residual (see the module docs),
-/// their noise estimated on `model`'s error: `rec` itself when it has no angular
-/// column, is weighted already, or a noise cannot be estimated (then only its
-/// positions count).
-pub(crate) fn weighted<'a>(
-    model: &ModelSpec,
-    rec: &'a Recording,
-) -> Result<Cow<'a, Recording>, DiagnoseError> {
+/// their noise estimated on the user model's prediction `pred` of every run: `rec`
+/// itself when it has no angular column, is weighted already, or a noise cannot be
+/// estimated (then only its positions count).
+pub(crate) fn weighted<'a>(rec: &'a Recording, pred: &Prediction) -> Cow<'a, Recording> {
     let Some(columns) = rec.angular_columns() else {
-        return Ok(Cow::Borrowed(rec));
+        return Cow::Borrowed(rec);
     };
     if rec.angular.is_some() {
-        return Ok(Cow::Borrowed(rec));
+        return Cow::Borrowed(rec);
     }
-    let all: Vec<usize> = (0..rec.runs.len()).collect();
-    let pred = predict(model, rec, &all)
-        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-    let e = errors(rec, &pred);
+    let e = errors(rec, pred);
     let sigma_mm = estimate_noise(rec, &positions(&e)).sigma_mm_per_axis;
-    let (sigma_rad, _) = angular::estimate(rec, columns, &angular::rotations(rec, columns, &pred));
+    let (sigma_rad, _) = angular::estimate(rec, columns, &angular::rotations(rec, columns, pred));
     let usable = |s: f64| s.is_finite() && s > 0.0;
     if !usable(sigma_mm) || !usable(sigma_rad) {
-        return Ok(Cow::Borrowed(rec));
+        return Cow::Borrowed(rec);
     }
     let mut out = rec.clone();
     out.angular = Some(AngularWeight {
@@ -41,5 +33,5 @@ pub(crate) fn weighted<'a>(
         sigma_rad,
         sigma_mm,
     });
-    Ok(Cow::Owned(out))
+    Cow::Owned(out)
 }
