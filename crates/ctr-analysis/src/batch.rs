@@ -28,6 +28,9 @@ pub struct BatchOptions {
     /// Rows per warm-started chunk (at least 1; 1 means every row is solved cold).
     /// The results depend on this, never on `threads`.
     pub chunk_rows: usize,
+    /// Compute every row's stability margin ([`crate::margin`]; else
+    /// [`FkResult::stability_margin`] is NaN).
+    pub margins: bool,
 }
 
 impl Default for BatchOptions {
@@ -35,6 +38,7 @@ impl Default for BatchOptions {
         BatchOptions {
             threads: 0,
             chunk_rows: WARM_CHUNK_ROWS,
+            margins: false,
         }
     }
 }
@@ -112,6 +116,8 @@ fn same_branch(a: &Result<FkResult, SolveError>, b: &Result<FkResult, SolveError
 /// [`BRANCH_TOLERANCE_MM`] the warm one is kept, with its memory, so that a trajectory
 /// follows one branch as the robot does. (With `chunk_rows` 1 every row is cold.) The
 /// caller that handed a range out without `after` checks it with [`branch_changed`].
+/// With `margins` every row's stability margin is computed
+/// ([`RowSolver::with_margins`]).
 ///
 /// # Panics
 /// If a row is not `2 n` values or `range` is beyond the rows.
@@ -120,12 +126,21 @@ pub fn solve_rows<'m>(
     rows: Rows<'_>,
     range: Range<usize>,
     chunk_rows: usize,
+    margins: bool,
     after: Option<&RowSolver<'m>>,
     mut each: impl FnMut(usize, Result<FkResult, SolveError>) -> bool,
 ) -> RowSolver<'m> {
     let width = 2 * model.robot().n_tubes();
     let chunk = chunk_rows.max(1);
-    let mut solver = model.solver();
+    let fresh = || {
+        let s = model.solver();
+        if margins {
+            s.with_margins()
+        } else {
+            s
+        }
+    };
+    let mut solver = fresh();
     for row in range.clone() {
         let tip = if row % chunk == 0 || row == range.start {
             let before = if row == range.start {
@@ -133,7 +148,7 @@ pub fn solve_rows<'m>(
             } else {
                 Some(solver.clone())
             };
-            solver = model.solver();
+            solver = fresh();
             let cold = solve_row(&mut solver, rows, row, width);
             match before.filter(|_| chunk > 1) {
                 Some(mut warm) => {
@@ -197,8 +212,10 @@ pub fn branch_changed(
 /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
 /// let model = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows().unwrap();
 /// let rows = [10.0, 0.0, 20.0, 0.0, 30.0, 90.0];
-/// let one = batch_fk(&model, &rows, None, &BatchOptions { threads: 1, ..Default::default() }, &()).unwrap();
-/// let two = batch_fk(&model, &rows, None, &BatchOptions { threads: 2, ..Default::default() }, &()).unwrap();
+/// // with margins: without, each row's `stability_margin` is NaN (and NaN != NaN)
+/// let options = |threads| BatchOptions { threads, margins: true, ..Default::default() };
+/// let one = batch_fk(&model, &rows, None, &options(1), &()).unwrap();
+/// let two = batch_fk(&model, &rows, None, &options(2), &()).unwrap();
 /// assert_eq!(one, two);
 /// ```
 pub fn batch_fk(
@@ -241,10 +258,18 @@ pub fn batch_fk(
         || (),
         |(), range| {
             let mut results = Vec::with_capacity(range.len());
-            let end = solve_rows(model, rows, range, options.chunk_rows, None, |_, r| {
-                results.push(r);
-                true
-            });
+            let end = solve_rows(
+                model,
+                rows,
+                range,
+                options.chunk_rows,
+                options.margins,
+                None,
+                |_, r| {
+                    results.push(r);
+                    true
+                },
+            );
             (results, end)
         },
         |range, (mut results, mut end)| {
@@ -263,6 +288,7 @@ pub fn batch_fk(
                         rows,
                         range,
                         options.chunk_rows,
+                        options.margins,
                         Some(after),
                         |_, r| {
                             results.push(r);

@@ -73,11 +73,6 @@ pub struct FkJob {
     pub warn_margin: Option<f64>,
 }
 
-/// The default warning margin (`ctr-cli fk --warn-margin`, and `diagnose` and `evaluate`
-/// marking rows near a snap): a margin this small is within a few degrees of a snap on the
-/// seed's robot with long transmissions (README, "Snap-through").
-pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
-
 /// A run of consecutive rows whose stability margin is below the warning margin.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LowMargin {
@@ -215,42 +210,51 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                 end: None,
             };
             let start = rows.start;
-            let end = solve_rows(&fkm, joints, rows, WARM_CHUNK_ROWS, after, |row, solved| {
-                let fk = match solved {
-                    Ok(fk) => fk,
-                    Err(e) => {
-                        chunk.row_error = Some((row, e));
-                        return false;
+            let margins = job.margin || job.warn_margin.is_some();
+            let end = solve_rows(
+                &fkm,
+                joints,
+                rows,
+                WARM_CHUNK_ROWS,
+                margins,
+                after,
+                |row, solved| {
+                    let fk = match solved {
+                        Ok(fk) => fk,
+                        Err(e) => {
+                            chunk.row_error = Some((row, e));
+                            return false;
+                        }
+                    };
+                    if row == start {
+                        chunk.first = Some(fk);
                     }
-                };
-                if row == start {
-                    chunk.first = Some(fk);
-                }
-                // a row that did not converge has no margin to warn of
-                let converged = fk.status == Status::Converged;
-                chunk.margins.push(if converged {
-                    fk.stability_margin
-                } else {
-                    f64::NAN
-                });
-                if fk.status != Status::Converged {
-                    chunk.failures.push(RowFailure {
-                        line: table.line(row),
-                        status: fk.status,
-                        residual_per_mm: fk.residual_per_mm,
+                    // a row that did not converge has no margin to warn of
+                    let converged = fk.status == Status::Converged;
+                    chunk.margins.push(if converged {
+                        fk.stability_margin
+                    } else {
+                        f64::NAN
                     });
-                    if skip {
-                        return true;
+                    if fk.status != Status::Converged {
+                        chunk.failures.push(RowFailure {
+                            line: table.line(row),
+                            status: fk.status,
+                            residual_per_mm: fk.residual_per_mm,
+                        });
+                        if skip {
+                            return true;
+                        }
                     }
-                }
-                let carried = match table.plain_line(row) {
-                    Some(line) => Carried::Line(line),
-                    None => Carried::Fields(table.fields(row)),
-                };
-                write_tip_row_for(&mut chunk.text, carried, &fk, columns);
-                chunk.written += 1;
-                true
-            });
+                    let carried = match table.plain_line(row) {
+                        Some(line) => Carried::Line(line),
+                        None => Carried::Fields(table.fields(row)),
+                    };
+                    write_tip_row_for(&mut chunk.text, carried, &fk, columns);
+                    chunk.written += 1;
+                    true
+                },
+            );
             chunk.end = Some(end);
             chunk
         },

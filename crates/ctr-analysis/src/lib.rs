@@ -33,6 +33,7 @@ pub mod batch;
 pub mod ik;
 pub mod job;
 pub mod limits;
+pub mod margin;
 pub mod model;
 pub mod rng;
 pub mod simulate;

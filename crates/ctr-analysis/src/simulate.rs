@@ -56,10 +56,10 @@ pub struct Prediction {
     pub q: Vec<[f64; 4]>,
     /// Rows whose solve did not converge (their tip is the solver's last iterate).
     pub failed: usize,
-    /// The stability margin of each row's solution
-    /// ([`FkResult::stability_margin`](ctr_formats::FkResult::stability_margin): 1 far
-    /// from a snap, 0 at one, negative on an unstable branch) along the branch the run
-    /// followed; `NaN` for rows not simulated or not converged.
+    /// The stability margin of each row's solution ([`crate::margin`]: 1 with no snap
+    /// within about 20 degrees or 20 mm, 0 at one, negative on an unstable branch) along
+    /// the branch the run followed, from [`predict_with_margins`]; `NaN` for rows not
+    /// simulated or not converged, and everywhere from [`predict`] and [`predict_rows`].
     pub margin: Vec<f64>,
 }
 
@@ -74,12 +74,33 @@ pub struct Prediction {
 /// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n50,0,0,0,50\n".as_bytes(), "rec.csv", 1)?;
 /// let pred = predict(&ModelSpec::from_spec(&spec), &rec, &[0]).unwrap();
 /// assert!((pred.p[0][2] - 50.0).abs() < 1e-12);
-/// // one tube: nothing to snap against, the margin of uncoupled tubes
-/// assert!((pred.margin[0] - 1.0).abs() < 1e-9);
+/// assert!(pred.margin[0].is_nan()); // not asked for: see predict_with_margins
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Prediction, SimError> {
-    simulate(model, rec, runs, |_| true)
+    simulate(model, rec, runs, |_| true, false)
+}
+
+/// [`predict`] with every simulated row's stability margin ([`Prediction::margin`]),
+/// at the cost of the margin's probes.
+///
+/// ```
+/// use ctr_analysis::{model::ModelSpec, simulate::predict_with_margins};
+/// use ctr_formats::{Recording, RobotSpec};
+/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+///     length_mm = 260.0\ncurved_length_mm = 0.0\n\
+///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+/// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n50,0,0,0,50\n".as_bytes(), "rec.csv", 1)?;
+/// let pred = predict_with_margins(&ModelSpec::from_spec(&spec), &rec, &[0]).unwrap();
+/// assert_eq!(pred.margin[0], 1.0); // one tube: nothing to snap against
+/// # Ok::<(), ctr_formats::Error>(())
+/// ```
+pub fn predict_with_margins(
+    model: &ModelSpec,
+    rec: &Recording,
+    runs: &[usize],
+) -> Result<Prediction, SimError> {
+    simulate(model, rec, runs, |_| true, true)
 }
 
 /// Simulates only the rows `rows` (indices into `rec.rows`, ascending) of a
@@ -118,15 +139,16 @@ pub fn predict_rows(
     for &r in rows {
         keep[r] = true;
     }
-    simulate(model, rec, &runs, |row| keep[row])
+    simulate(model, rec, &runs, |row| keep[row], false)
 }
 
-/// The runs `runs` simulated, the rows `keep` says solved.
+/// The runs `runs` simulated, the rows `keep` says solved, with margins if `margins`.
 fn simulate(
     model: &ModelSpec,
     rec: &Recording,
     runs: &[usize],
     keep: impl Fn(usize) -> bool,
+    margins: bool,
 ) -> Result<Prediction, SimError> {
     let rows = model.rows().map_err(SimError::Model)?;
     let mut out = Prediction {
@@ -146,6 +168,9 @@ fn simulate(
             )
         });
         let mut solver = rows.solver();
+        if margins {
+            solver = solver.with_margins();
+        }
         for (k, row) in range.enumerate() {
             if !keep(row) {
                 continue;

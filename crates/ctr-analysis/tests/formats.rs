@@ -288,6 +288,7 @@ fn tip_writer_floats_parse_back_bit_for_bit() {
         status: Status::IterationLimit,
         residual_per_mm: values[7],
         iterations: 30,
+        softest_mode: 0.5,
         stability_margin: 0.5,
     };
     let header = tip_header(&["label".into()], true).unwrap();

@@ -389,13 +389,15 @@ fn a_solve_depends_only_on_its_arguments() {
     // b has a history, a has none
     let _ = b.solve_trajectory(&targets, None);
     let _ = b.solve(&IkTarget::position([0.0, 0.0, 500.0]), None);
+    // (compared as printed: without a margin floor the margin is NaN, not computed)
+    let same = |x: IkResult, y: IkResult| assert_eq!(format!("{x:?}"), format!("{y:?}"));
     for t in targets.iter().step_by(7) {
-        assert_eq!(a.solve(t, None), b.solve(t, None));
+        same(a.solve(t, None), b.solve(t, None));
     }
     let q0 = a.solve(&targets[0], None).q;
-    assert_eq!(
+    same(
         a.solve(&targets[5], Some(&q0)),
-        b.solve(&targets[5], Some(&q0))
+        b.solve(&targets[5], Some(&q0)),
     );
 }
 

@@ -4,6 +4,7 @@
 mod sweeps;
 
 use ctr_analysis::batch::{batch_fk, BatchOptions, WARM_CHUNK_ROWS};
+use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 use ctr_analysis::model::ModelSpec;
 use ctr_core::{Joints, Model, Request, Robot, Solver, Status, TubeParams};
 use ctr_formats::FkResult;
@@ -24,7 +25,7 @@ fn params() -> Vec<TubeParams<f64>> {
         .tube_params()
 }
 
-/// The closed-form margin of the symmetric configuration (the tubes' curvatures opposed,
+/// The closed-form softest mode of the symmetric configuration (the tubes' curvatures opposed,
 /// untwisted: an equilibrium at every feed): with the overlap of the curved parts `l`,
 /// the straight length behind it (transmissions, compliance-weighted, and the common
 /// straight part) `L` and `lambda = l sqrt|C|`, the twist perturbation
@@ -60,8 +61,8 @@ fn cold(robot: &Robot<f64, 2>, s1: f64, rel_deg: f64) -> ctr_core::Solution<f64,
 }
 
 #[test]
-fn the_margin_at_the_symmetric_configuration_is_the_closed_form_and_vanishes_at_the_critical_feed()
-{
+fn the_softest_mode_at_the_symmetric_configuration_is_the_closed_form_and_vanishes_at_the_critical_feed(
+) {
     let params = params();
     let robot: Robot<f64, 2> = Robot::new([params[0], params[1]]).unwrap();
     let sym = symmetric_deg(&params);
@@ -69,13 +70,13 @@ fn the_margin_at_the_symmetric_configuration_is_the_closed_form_and_vanishes_at_
         let sol = cold(&robot, s1, sym);
         let want = closed_form_margin(&params, s1);
         eprintln!(
-            "s1 = {s1}: margin {:.6}, closed form {want:.6}",
-            sol.stability_margin
+            "s1 = {s1}: softest mode {:.6}, closed form {want:.6}",
+            sol.softest_mode
         );
         assert!(
-            (sol.stability_margin - want).abs() < 1e-5,
+            (sol.softest_mode - want).abs() < 1e-5,
             "s1 = {s1}: {} vs {want}",
-            sol.stability_margin
+            sol.softest_mode
         );
     }
     // the critical feed: the closed form's zero, and where the core stops returning the
@@ -97,16 +98,16 @@ fn the_margin_at_the_symmetric_configuration_is_the_closed_form_and_vanishes_at_
     let closed = bisect(&|s1| closed_form_margin(&params, s1) > 0.0);
     let core = bisect(&|s1| {
         let sol = cold(&robot, s1, sym);
-        sol.base_twist_per_mm[0].abs() < 1e-9 && sol.stability_margin > 0.0
+        sol.base_twist_per_mm[0].abs() < 1e-9 && sol.softest_mode > 0.0
     });
     eprintln!("critical feed s1: closed form {closed:.4} mm, core {core:.4} mm");
     assert!((closed - core).abs() < 0.01, "{closed} vs {core}");
     let past = cold(&robot, core + 1.0, sym);
     eprintln!(
         "1 mm past it: margin {:.4}, base twist {:.2e} rad/mm",
-        past.stability_margin, past.base_twist_per_mm[0]
+        past.softest_mode, past.base_twist_per_mm[0]
     );
-    assert!(past.stability_margin > 0.0 && past.base_twist_per_mm[0].abs() > 1e-6);
+    assert!(past.softest_mode > 0.0 && past.base_twist_per_mm[0].abs() > 1e-6);
 }
 
 /// One sweep: the rows, the continuation along them and the rows as solved.
@@ -130,6 +131,7 @@ fn sweep(params: &[TubeParams<f64>], s1: f64) -> Sweep {
     let options = BatchOptions {
         threads: 1,
         chunk_rows: WARM_CHUNK_ROWS,
+        margins: true,
     };
     let solved = batch_fk(&model, rows.as_flattened(), None, &options, &())
         .unwrap()
@@ -176,10 +178,10 @@ fn sweeps_follow_the_branch_of_the_continuation_and_the_margin_foretells_each_sn
             .count();
         let margin_error = judged
             .iter()
-            .map(|&i| (sw.solved[i].stability_margin - sw.followed[i].eq.slope).abs())
+            .map(|&i| (sw.solved[i].softest_mode - sw.followed[i].eq.slope).abs())
             .fold(0.0, f64::max);
         eprintln!(
-            "s1 = {}: {} rows, snaps at rows {jumps:?}, {on} of {} on the branch, {not_converged} not converged, margin vs continuation {margin_error:.1e}",
+            "s1 = {}: {} rows, snaps at rows {jumps:?}, {on} of {} on the branch, {not_converged} not converged, softest mode vs continuation {margin_error:.1e}",
             sw.s1,
             sw.solved.len(),
             judged.len()
@@ -202,13 +204,18 @@ fn sweeps_follow_the_branch_of_the_continuation_and_the_margin_foretells_each_sn
             let fold = sw.followed[j].fold.expect("a jump ends a branch");
             let before = &margins[j - 3..j];
             highest_before_snap = highest_before_snap.max(before[2]);
-            // falls in the last steps, to the sweep's lowest
+            // falls in the last steps, to the sweep's lowest and below the warning margin
             assert!(before[0] > before[1] && before[1] > before[2], "{before:?}");
+            let at = margins.iter().position(|&m| m == lowest).unwrap();
+            eprintln!(
+                "  lowest {lowest:.4} at row {at} (softest {:.3}), before {before:.4?}",
+                sw.solved[at].softest_mode
+            );
             assert!(before[2] <= lowest + 1e-12);
-            // near a fold the margin goes as the square root of the angle left: its
-            // square, extrapolated from the last two rows, reaches zero where the
-            // continuation's branch ends
-            let (a, b) = (before[1].powi(2), before[2].powi(2));
+            assert!(before[2] <= DEFAULT_WARN_MARGIN, "{before:?}");
+            // the margin is a distance to the fold, linear in the angle left: extrapolated
+            // from the last two rows it reaches zero where the continuation's branch ends
+            let (a, b) = (before[1], before[2]);
             let predicted = b / (a - b);
             eprintln!(
                 "  snap at row {j}: margins {before:.3?}, fold predicted {predicted:.2} of a step after the last row, continuation {fold:.2}"
@@ -219,10 +226,12 @@ fn sweeps_follow_the_branch_of_the_continuation_and_the_margin_foretells_each_sn
     eprintln!(
         "lowest margin of a sweep that does not snap {lowest_calm:.3}; margin one step before a snap up to {highest_before_snap:.3}"
     );
+    // a margin that ranks danger: every snap is announced lower than any calm sweep goes
+    assert!(highest_before_snap < lowest_calm);
 }
 
 #[test]
-fn the_margin_is_the_stiffness_of_the_softest_twist_mode_relative_to_uncoupled_tubes() {
+fn the_softest_mode_is_the_stiffness_of_the_softest_twist_mode_relative_to_uncoupled_tubes() {
     let params = params();
     let spec = sweeps::long_transmissions(EXTRA_TRANSMISSION_MM);
     let model = ModelSpec::from_spec(&spec).rows().unwrap();
@@ -242,9 +251,9 @@ fn the_margin_is_the_stiffness_of_the_softest_twist_mode_relative_to_uncoupled_t
                 .solver()
                 .fk(&[s1, 0.0, s1 + INNER_AHEAD_MM, rel])
                 .unwrap();
-            worst = worst.max((fk.stability_margin / want - 1.0).abs());
+            worst = worst.max((fk.softest_mode / want - 1.0).abs());
         }
     }
-    eprintln!("margin / stiffness ratio of the softest twist mode: within {worst:.3}");
+    eprintln!("softest mode / stiffness ratio of the softest twist mode: within {worst:.3}");
     assert!(worst < 0.1);
 }

@@ -4,7 +4,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
 use ctr_analysis::batch::IK_CHUNK_ROWS;
 use ctr_analysis::ik::IkOptions;
-use ctr_analysis::job::DEFAULT_WARN_MARGIN;
+use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 use ctr_formats::{ModelKind, ORIENTATION_TOLERANCE_DEG};
 use ctr_hw::emulator::Fault;
 use std::path::PathBuf;
@@ -431,13 +431,15 @@ pub struct FkArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
 
-    /// Append a stability_margin column: the elastic stability margin of each row's
-    /// solution (1 far from any snap, 0 at one, negative on an unstable branch).
+    /// Append a stability_margin column: each row's distance to the nearest snap in joint
+    /// space over 20 degrees or mm, capped at 1 (0 at a snap, negative on an unstable
+    /// branch; README, "Snap-through").
     #[arg(long)]
     pub margin: bool,
 
     /// Warn once per run of consecutive rows whose stability margin is below X (with the
-    /// run's lines and its smallest margin); 0 turns the warnings off.
+    /// run's lines and its smallest margin; 0.05: about a degree or a millimetre from a
+    /// snap); 0 turns the warnings off.
     #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN)]
     pub warn_margin: f64,
 }

@@ -4,7 +4,7 @@
 //! prints and writes.
 
 use crate::Failure;
-use ctr_analysis::job::DEFAULT_WARN_MARGIN;
+use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, Marks, Options, Page};
 use ctr_formats::{AtomicFile, Recording, RobotSpec, CLEARANCE_FIT_TABLE_SIZES};

@@ -228,7 +228,7 @@ fn finite_or_error<const N: usize>(
                         && (tip.rotation.determinant() - 1.0).abs() < 1e-9;
                 prop_assert!(orthonormal, "not a rotation: {:?}", tip.rotation);
                 prop_assert!(sol.residual_per_mm.is_finite(), "{:?}", sol);
-                prop_assert!(sol.stability_margin.is_finite(), "{:?}", sol);
+                prop_assert!(sol.softest_mode.is_finite(), "{:?}", sol);
                 prop_assert!(
                     sol.base_twist_per_mm
                         .iter()
@@ -457,7 +457,7 @@ fn continuity<const N: usize>(
                 Request::new(q, Model::Torsion).joint_jacobian(&mut jac),
             )
             .expect("valid joints");
-        if sol.status != Status::Converged || sol.stability_margin < SNAP_MARGIN {
+        if sol.status != Status::Converged || sol.softest_mode < SNAP_MARGIN {
             steps.borrow_mut()[1] += 1;
             break;
         }
@@ -475,8 +475,8 @@ fn continuity<const N: usize>(
             prop_assert!(
                 moved <= bound,
                 "step {k} from {pq:?} to {q:?}: the tip moved {moved} mm, the Jacobians allow {bound} (margins {} and {})",
-                p.stability_margin,
-                sol.stability_margin
+                p.softest_mode,
+                sol.softest_mode
             );
             steps.borrow_mut()[0] += 1;
         }
@@ -552,7 +552,7 @@ fn jacobian_matches<const N: usize>(
     let sol = center
         .solve(&robot, Request::new(q, model).joint_jacobian(&mut jac))
         .expect("valid joints");
-    prop_assume!(sol.status == Status::Converged && sol.stability_margin >= JACOBIAN_MARGIN);
+    prop_assume!(sol.status == Status::Converged && sol.softest_mode >= JACOBIAN_MARGIN);
     let r = sol.tip.rotation;
     for j in 0..2 * N {
         let shifted = |sign: f64| {
@@ -585,7 +585,7 @@ fn jacobian_matches<const N: usize>(
                 err <= FD_RTOL * f.norm() + FD_ATOL,
                 "column {j} ({}) block {block}: analytic {g:?} vs difference {f:?} (error {err:e}) at {q:?}, margin {}",
                 if j < N { "feed" } else { "rotation" },
-                sol.stability_margin
+                sol.softest_mode
             );
         }
     }

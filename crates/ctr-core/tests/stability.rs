@@ -31,12 +31,12 @@ fn margin_vanishes_at_the_snap_of_a_long_transmission_pair() {
             )
             .unwrap()
     };
-    let margin = |s1: f64, rel: f64| solve(s1, rel).stability_margin;
+    let margin = |s1: f64, rel: f64| solve(s1, rel).softest_mode;
     // the opposed configuration, untwisted, is an equilibrium at every feed; past the
     // crossing it is unstable and a cold solve takes a stable twisted one instead
     let symmetric = |s1: f64| {
         let sol = solve(s1, 0.0);
-        sol.base_twist_per_mm[0].abs() < 1e-9 && sol.stability_margin > 0.0
+        sol.base_twist_per_mm[0].abs() < 1e-9 && sol.softest_mode > 0.0
     };
     // find the crossing by bisection
     let (mut lo, mut hi) = (20.0, 40.0);
@@ -107,7 +107,7 @@ fn min_margin<const N: usize>(name: &str, inc: [(f64, f64); N], steps: usize) ->
                 Request::new(Joints::from_mm_deg(s, th), Model::Torsion).cold(),
             )
             .unwrap();
-        min = min.min(sol.stability_margin);
+        min = min.min(sol.softest_mode);
     }
     min
 }

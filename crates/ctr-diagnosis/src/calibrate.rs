@@ -10,7 +10,7 @@ use crate::report::{Diagnosis, Finding};
 use crate::residual::{errors, figures};
 use crate::start::{sample_period, Start};
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::predict_with_margins;
 use ctr_formats::Recording;
 
 /// Start of every value of a clearance table fit, deg.
@@ -104,7 +104,7 @@ pub fn calibrate(
             DiagnoseError::Model("the model cannot be simulated with these effects".into())
         })?;
     let m = problem.model(&fitted.x);
-    let pred = predict(&m, rec, &start.all_runs)
+    let pred = predict_with_margins(&m, rec, &start.all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     let e = errors(rec, &pred);
     let fig = figures(&e, &start.held);

@@ -6,7 +6,7 @@ use crate::report::RunErrors;
 use crate::residual::errors;
 use crate::stability::{checked_warn_margin, MarginRange, Marks};
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::predict_with_margins;
 use ctr_formats::Recording;
 
 /// Mean and largest tip error per run (and over all rows, last) for each model, with
@@ -42,7 +42,7 @@ pub fn evaluate(
     let mut margins = Vec::with_capacity(models.len());
     let mut marks = Vec::with_capacity(models.len());
     for m in models {
-        let p = predict(m, rec, &all_runs)
+        let p = predict_with_margins(m, rec, &all_runs)
             .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
         sizes.push(
             errors(rec, &p)

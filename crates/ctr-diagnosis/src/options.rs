@@ -2,7 +2,7 @@
 
 use crate::candidates::EffectId;
 use crate::split::Holdout;
-use ctr_analysis::job::DEFAULT_WARN_MARGIN;
+use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 
 /// Options of a diagnosis.
 #[derive(Clone, Debug, PartialEq)]

@@ -16,7 +16,7 @@ use crate::screen::{Screen, Screened, FULL_FITS};
 use crate::start::{sample_period, Start};
 use crate::verify;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::{predict, predict_with_margins};
 use ctr_formats::Recording;
 
 /// Smallest relative drop of the held-out RMS for an effect to be added.
@@ -369,7 +369,7 @@ pub fn diagnose(
         }
         current = m;
     }
-    let final_pred = predict(&current, rec, all_runs)
+    let final_pred = predict_with_margins(&current, rec, all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     Ok(start.finish(
         rec,

@@ -15,7 +15,7 @@ use crate::suggest;
 use crate::uncertainty::{self, Assessment};
 use crate::weighting;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::{predict, Prediction};
+use ctr_analysis::simulate::{predict_with_margins, Prediction};
 use ctr_formats::Recording;
 use std::borrow::Cow;
 
@@ -59,7 +59,7 @@ pub(crate) fn simulated<'a>(
     rec: &'a Recording,
 ) -> Result<(Cow<'a, Recording>, Prediction), DiagnoseError> {
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
-    let base = predict(model, rec, &all_runs)
+    let base = predict_with_margins(model, rec, &all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     Ok((weighting::weighted(rec, &base), base))
 }

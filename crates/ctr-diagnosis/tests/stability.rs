@@ -7,7 +7,7 @@
 #[path = "../../ctr-analysis/tests/sweeps/mod.rs"]
 mod sweeps;
 
-use ctr_analysis::job::DEFAULT_WARN_MARGIN;
+use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::synth::{record, CommandedRun, SynthSpec, Synthetic};
 use ctr_diagnosis::{diagnose, evaluate, MarginRange, Marks, Options, Page};
@@ -23,9 +23,8 @@ const SNAPPING_S1_MM: f64 = 55.0;
 const CALM_S1_MM: f64 = 15.0;
 /// Step of the relative angle along a sweep, degrees.
 const STEP_DEG: f64 = 1.0;
-/// The warning margin of these tests: on 1 deg steps the row before a snap reads about
-/// 0.12 (the margin falls as the square root of the angle left, README "Snap-through"),
-/// above the default.
+/// The warning margin of these tests: about 6 degrees from a snap (README
+/// "Snap-through"), the last few rows before each snap on 1 deg steps.
 const WARN_MARGIN: f64 = 0.3;
 /// A tip that moves more than this between two rows has jumped, mm (the snaps here jump
 /// about 49 mm; a 1 deg step moves the tip about 1 mm).
@@ -280,11 +279,13 @@ fn evaluate_marks_the_snaps_per_run_and_per_model() {
     assert!(words.starts_with("Near a snap: m.toml is within 0.3 of a snap at lines "));
 }
 
-/// With the default warning margin (0.05), only rows within a small fraction of a degree
-/// of a snap are marked: a 1 deg sweep marks none, a 0.02 deg approach to the snap marks
-/// its last rows.
+/// The default warning margin (0.05) is about a degree of joint motion from a snap: a
+/// 1 deg sweep marks the last row or two before each snap, a 0.02 deg approach to the
+/// snap marks its last one to three degrees (the margin is the distance to the fold in
+/// any joint direction, feeds included, so along one rotation the fold is at least that
+/// far: README "Snap-through").
 #[test]
-fn the_default_warning_margin_marks_the_last_hundredths_of_a_degree() {
+fn the_default_warning_margin_marks_about_the_last_degree() {
     let model = model();
     let coarse = sweep(&model, SNAPPING_S1_MM, relaxed_deg(&model), STEP_DEG, 360.0);
     let table = evaluate(
@@ -293,12 +294,23 @@ fn the_default_warning_margin_marks_the_last_hundredths_of_a_degree() {
         DEFAULT_WARN_MARGIN,
     )
     .unwrap();
-    assert!(table[0].near_snap[0].is_empty(), "{:?}", table[0].near_snap);
-    // forward only: from a degree before the snap of the coarse sweep, past it
-    let jump = jumps(&coarse)[0];
-    let from = coarse.recording.rows[jump - 2].q[3];
-    let fine = sweep(&model, SNAPPING_S1_MM, from, 0.02, 2.0);
-    let fine_jumps: Vec<usize> = jumps(&fine).into_iter().filter(|&k| k <= 100).collect();
+    let coarse_jumps = jumps(&coarse);
+    assert_eq!(coarse_jumps.len(), 2, "{coarse_jumps:?}");
+    for &j in &coarse_jumps {
+        let before = coarse.recording.rows[j - 1].line;
+        let r = holding(&table[0].near_snap[0], before).expect("the row before a snap marked");
+        eprintln!(
+            "1 deg steps: lines {:?} marked, lowest {:.4}",
+            r.lines, r.lowest_margin
+        );
+        assert!(r.lines[1] == before && r.rows <= 2, "{r:?}");
+    }
+    assert_eq!(table[0].near_snap[0].len(), 2, "{:?}", table[0].near_snap);
+    // forward only: from four degrees before the snap of the coarse sweep, past it
+    let jump = coarse_jumps[0];
+    let from = coarse.recording.rows[jump - 5].q[3];
+    let fine = sweep(&model, SNAPPING_S1_MM, from, 0.02, 5.0);
+    let fine_jumps: Vec<usize> = jumps(&fine).into_iter().filter(|&k| k <= 250).collect();
     assert_eq!(fine_jumps.len(), 1, "{fine_jumps:?}");
     let table = evaluate(
         std::slice::from_ref(&model),
@@ -306,18 +318,17 @@ fn the_default_warning_margin_marks_the_last_hundredths_of_a_degree() {
         DEFAULT_WARN_MARGIN,
     )
     .unwrap();
-    let marks = Marks {
-        near_snap: table[0].near_snap[0].clone(),
-        unstable: Vec::new(),
-    };
     let before = fine.recording.rows[fine_jumps[0] - 1].line;
-    let r = holding(&marks.near_snap, before).expect("the rows before the snap marked");
+    let r = holding(&table[0].near_snap[0], before).expect("the rows before the snap marked");
+    let marked_deg = r.rows as f64 * 0.02;
     eprintln!(
-        "0.02 deg steps: lines {:?} marked ({} rows), lowest {:.4}",
+        "0.02 deg steps: lines {:?} marked ({} rows, {marked_deg:.2} deg), lowest {:.4}",
         r.lines, r.rows, r.lowest_margin
     );
     assert_eq!(r.lines[1], before);
-    assert!(r.lowest_margin < DEFAULT_WARN_MARGIN && r.rows >= 2);
+    assert!(r.lines[0] > fine.recording.rows[0].line, "{r:?}");
+    assert!(r.lowest_margin < 0.1 * DEFAULT_WARN_MARGIN, "{r:?}");
+    assert!((1.0..=3.0).contains(&marked_deg), "{r:?}");
 }
 
 /// The robot's tube 2 turned 3 deg less than commanded (a rotation offset): it snaps 3

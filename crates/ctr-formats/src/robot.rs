@@ -61,14 +61,18 @@ pub struct FkResult {
     pub residual_per_mm: f64,
     /// Newton iterations used.
     pub iterations: u32,
-    /// The core's elastic stability margin (`ctr_core::Solution::stability_margin`): 1
-    /// far from any snap, 0 at one, negative on an unstable branch.
+    /// The core's softest twist mode (`ctr_core::Solution::softest_mode`): the
+    /// stiffness of the softest twist mode relative to uncoupled tubes, signed.
+    pub softest_mode: f64,
+    /// The stability margin (`ctr_analysis::margin`): the joint distance to the nearest
+    /// snap over 20 mm or degrees, capped at 1; 0 at a snap, negative on an unstable
+    /// branch.
     pub stability_margin: f64,
 }
 
 impl FkResult {
-    /// Converts a core solution.
-    pub fn from_solution<const N: usize>(sol: &Solution<f64, N>) -> Self {
+    /// Converts a core solution whose stability margin is `stability_margin`.
+    pub fn from_solution<const N: usize>(sol: &Solution<f64, N>, stability_margin: f64) -> Self {
         let p = sol.tip.position;
         FkResult {
             position: [p.x, p.y, p.z],
@@ -76,7 +80,8 @@ impl FkResult {
             status: sol.status,
             residual_per_mm: sol.residual_per_mm,
             iterations: sol.iterations,
-            stability_margin: sol.stability_margin,
+            softest_mode: sol.softest_mode,
+            stability_margin,
         }
     }
 }

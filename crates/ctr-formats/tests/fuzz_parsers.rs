@@ -374,6 +374,7 @@ fn tables() -> impl Strategy<Value = Tables> {
                     status: Status::Converged,
                     residual_per_mm: residual,
                     iterations: 3,
+                    softest_mode: 1.0,
                     stability_margin: 1.0,
                 });
                 joints.push(file_order);

@@ -16,7 +16,7 @@ use crate::errors;
 use crate::json::Json;
 use crate::recording::{self, Recording};
 use crate::robot::{check_threads, Robot, MAX_THREADS};
-use ctr_analysis::job::DEFAULT_WARN_MARGIN;
+use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 use ctr_analysis::model::ModelSpec;
 use ctr_diagnosis::{DiagnoseError, Diagnosis, EffectId, Holdout, MarginRange, Options, Page};
 use ctr_formats::CLEARANCE_FIT_TABLE_SIZES;

@@ -3,26 +3,20 @@
 //!
 //! [`Guard`] holds one start's state: the margin at the current iterate and its
 //! gradient, the level the linearised margin must reach after a step, and whether the
-//! margin shaped the last steps. [`gradient`] takes the gradient by differences of FK
-//! solves warm-started from the iterate.
+//! margin shaped the last steps. The gradient is the one the FK solve of the iterate
+//! gives with its margin ([`crate::margin::Margin::gradient`]: the softest mode's
+//! gradient by the kernel's central differences, scaled), so a step costs no probes
+//! beyond the margin's own.
 
 #[cfg(doc)]
 use super::IkOptions;
-use crate::limits::JointLimits;
-use crate::model::{TipFk, MAX_JOINTS};
+use crate::model::{Solved, MAX_JOINTS};
 use nalgebra::SVector;
 
 type Joint = SVector<f64, MAX_JOINTS>;
 
-/// Step of the margin's finite differences on feeds, mm. The margins are settled (see
-/// `CoreFk`), so they differ between solves by far less than a step's change.
-pub const MARGIN_STEP_MM: f64 = 1e-3;
-/// Step of the margin's finite differences on rotations, rad (see [`MARGIN_STEP_MM`]).
-pub const MARGIN_STEP_RAD: f64 = 1e-4;
 /// What every iterate's margin must clear beyond `min_margin` (dimensionless), so that a
-/// re-solve of a result never reads below `min_margin`: an unsettled margin (what
-/// `ctr-cli fk` writes) differs from the settled one by up to 5e-5 (20,000 random
-/// joints of the long-transmission robot, warm and cold).
+/// re-solve of a result (warm from elsewhere, or cold) never reads below `min_margin`.
 pub const MARGIN_SLACK: f64 = 1e-3;
 /// A result not reached whose margin is within this of `min_margin` (dimensionless) is
 /// held back by it ([`super::IkStatus::UnreachableWithMargin`]).
@@ -32,6 +26,12 @@ pub const MARGIN_ACTIVE_BAND: f64 = 1e-2;
 const MIN_RESTORE_FRACTION: f64 = 1e-3;
 /// Factor on the back-off after an accepted step (dimensionless).
 const BACKOFF_DECAY: f64 = 0.5;
+
+/// What an iterate's margin must reach under the floor `min_margin`: `min_margin +`
+/// [`MARGIN_SLACK`].
+pub(super) fn floor(min_margin: f64) -> f64 {
+    min_margin + MARGIN_SLACK
+}
 
 /// One start's margin constraint.
 #[derive(Clone, Copy, Debug)]
@@ -53,12 +53,12 @@ pub(super) struct Guard {
 }
 
 impl Guard {
-    /// The constraint `min_margin` at a start whose margin is `margin`.
-    pub fn new(min_margin: f64, margin: f64) -> Self {
+    /// The constraint `min_margin` at a start solved to `start`.
+    pub fn new(min_margin: f64, start: &Solved) -> Self {
         Guard {
-            floor: min_margin + MARGIN_SLACK,
-            margin,
-            grad: Joint::zeros(),
+            floor: floor(min_margin),
+            margin: start.margin,
+            grad: Joint::from(start.margin_gradient),
             backoff: 0.0,
             restore: 1.0,
             held: false,
@@ -111,13 +111,14 @@ impl Guard {
         }
     }
 
-    /// The step `dq` was taken to a margin `m`.
-    pub fn took(&mut self, m: f64) {
+    /// A step was taken to the iterate solved to `to`.
+    pub fn took(&mut self, to: &Solved) {
         if self.restoring() {
             self.restore = (2.0 * self.restore).min(1.0);
         }
         self.backoff *= BACKOFF_DECAY;
-        self.margin = m;
+        self.margin = to.margin;
+        self.grad = Joint::from(to.margin_gradient);
     }
 
     /// The step `dq` was refused for its margin `m`: aim higher by what the linear
@@ -143,44 +144,5 @@ impl Guard {
             return self.restore >= MIN_RESTORE_FRACTION;
         }
         true
-    }
-}
-
-/// The gradient of the margin at `q` (the current iterate of `fk`, whose margin is
-/// `margin`) into `grad`: central differences of FK solves warm-started from the
-/// iterate, steps [`MARGIN_STEP_MM`] / [`MARGIN_STEP_RAD`], one-sided where a probe
-/// would leave `limits`; zero for a joint that cannot move either way (pinned by its
-/// limits) or whose probes do not solve.
-pub(super) fn gradient(
-    fk: &dyn TipFk,
-    limits: &JointLimits,
-    q: &[f64],
-    margin: f64,
-    grad: &mut Joint,
-) {
-    grad.fill(0.0);
-    let mut probe_q = q.to_vec();
-    let mut probe = |j: usize, delta: f64| -> Option<f64> {
-        probe_q.copy_from_slice(q);
-        probe_q[j] += delta;
-        if !limits.admits(&probe_q) {
-            return None;
-        }
-        fk.probe(&probe_q)
-            .map(|s| s.margin)
-            .filter(|m| m.is_finite())
-    };
-    for j in 0..q.len() {
-        let h = if j % 2 == 0 {
-            MARGIN_STEP_MM
-        } else {
-            MARGIN_STEP_RAD
-        };
-        grad[j] = match (probe(j, h), probe(j, -h)) {
-            (Some(p), Some(m)) => (p - m) / (2.0 * h),
-            (Some(p), None) => (p - margin) / h,
-            (None, Some(m)) => (margin - m) / h,
-            (None, None) => 0.0,
-        };
     }
 }

@@ -92,7 +92,7 @@
 //! # Stability margin
 //!
 //! With [`IkOptions::min_margin`] `X` no iterate, and so no result, has a stability
-//! margin (the core's `Solution::stability_margin`: about 1 far from a snap, 0 at one)
+//! margin ([`crate::margin`]: 1 with no snap within about 20 degrees or 20 mm, 0 at one)
 //! below `X`. It is a constraint of every step, not a filter of the results:
 //!
 //! ```text
@@ -100,10 +100,9 @@
 //! level = min(X + MARGIN_SLACK + backoff, m(q))   (dq = 0 stays feasible)
 //! ```
 //!
-//! `grad m` is central differences of FK solves warm-started from the iterate
-//! ([`MARGIN_STEP_MM`], [`MARGIN_STEP_RAD`]; zero for a joint its limits pin), and every
-//! margin is settled: read from a second solve at the same joints that starts on the
-//! solution (the core's is that of Newton's last iterate but one, up to 5e-5 off).
+//! `grad m` is the one the iterate's FK solve gives with its margin
+//! ([`crate::margin::Margin::gradient`]), so the constraint costs no solves beyond the
+//! margin's own.
 //! A trial whose margin is below `X + MARGIN_SLACK` is refused like one that does not
 //! lower `E` (`lambda` grows), and `backoff` grows by what the linear model
 //! overestimated (it halves after each step taken). A start below the floor first takes
@@ -163,7 +162,7 @@ mod options;
 mod qp;
 mod step;
 
-pub use margin::{MARGIN_ACTIVE_BAND, MARGIN_SLACK, MARGIN_STEP_MM, MARGIN_STEP_RAD};
+pub use margin::{MARGIN_ACTIVE_BAND, MARGIN_SLACK};
 pub use options::{IkError, IkOptions, IkResult, IkStatus};
 use step::{nan_frame, Attempt, End};
 
@@ -275,7 +274,7 @@ impl Ik {
         let limits = JointLimits::new(&lengths, limits)?;
         let mut fk = rows.tip_fk();
         if options.min_margin.is_some() {
-            fk.settle_margins();
+            fk.with_margins();
         }
         let mut rng = Rng::new(options.seed);
         let n = 2 * limits.n_tubes();
@@ -292,7 +291,7 @@ impl Ik {
             }
         }
         if let Some(x) = options.min_margin {
-            let floor = margin::Guard::new(x, 0.0).floor;
+            let floor = margin::floor(x);
             if !samples.iter().any(|s| s.2 >= floor) {
                 return Err(IkError::MinMargin {
                     min_margin: x,
@@ -393,11 +392,9 @@ impl Ik {
         self.fk.cold(q).map(|s| s.tip)
     }
 
-    /// The stability margin at `q` (mm, rad), solved cold as [`fk`](Self::fk) solves
-    /// it and settled as the IK's with a margin floor ([`IkOptions::min_margin`]:
-    /// of the shooting Jacobian at the solution itself); `Solution::stability_margin`:
-    /// dimensionless, about 1 far from a snap, 0 at one. `None` where the FK does not
-    /// converge.
+    /// The stability margin ([`crate::margin`]) at `q` (mm, rad), solved cold as
+    /// [`fk`](Self::fk) solves it: dimensionless, 1 with no snap within about 20 degrees
+    /// or 20 mm, 0 at one. `None` where the FK does not converge.
     ///
     /// # Panics
     /// If `q` does not have `2 n` values.
@@ -413,7 +410,7 @@ impl Ik {
     pub fn stability_margin(&self, q: &[f64]) -> Option<f64> {
         assert_eq!(q.len(), 2 * self.n_tubes());
         let mut fk = self.fk.boxed_clone();
-        fk.settle_margins();
+        fk.with_margins();
         fk.cold(q).map(|s| s.margin)
     }
 
@@ -550,16 +547,18 @@ impl Ik {
                 })
                 .collect();
         }
-        // with a margin floor, only the points within it
-        let floor = self
-            .options
-            .min_margin
-            .map_or(f64::NEG_INFINITY, |x| margin::Guard::new(x, 0.0).floor);
+        // with a margin floor, only the points within it (without, margins are NaN: not
+        // computed)
+        let within = |m: f64| {
+            self.options
+                .min_margin
+                .is_none_or(|x| m >= margin::floor(x))
+        };
         let mut order: Vec<(f64, usize)> = self
             .samples
             .iter()
             .enumerate()
-            .filter(|(_, s)| s.2 >= floor)
+            .filter(|(_, s)| within(s.2))
             .map(|(k, (_, tip, _))| (self.error(target, tip).1, k))
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));

@@ -2,7 +2,7 @@
 //! doc](super)): the weighted error, the damped step as a QP within the limits, the
 //! gain-ratio rule for `lambda`, and when a start ends.
 
-use super::margin::{self, Guard};
+use super::margin::Guard;
 use super::{Ik, IkTarget};
 use crate::model::{log_so3, tip_jacobian, Jacobian, MAX_JOINTS};
 use ctr_core::Frame;
@@ -138,7 +138,7 @@ impl Ik {
         self.fk.accept();
         let mut tip = first.tip;
         let mut margin = first.margin;
-        let mut guard = o.min_margin.map(|x| Guard::new(x, margin));
+        let mut guard = o.min_margin.map(|x| Guard::new(x, &first));
         let (mut e, mut cost) = self.error(target, &tip);
         // the iterates within the margin, for the check of the result (`settle`)
         let mut kept: Vec<Kept> = Vec::new();
@@ -171,9 +171,6 @@ impl Ik {
                 a = jw * jac;
                 g = jw * e;
                 fresh = true;
-                if let Some(gd) = &mut guard {
-                    margin::gradient(&*self.fk, &self.limits, &q, gd.margin, &mut gd.grad);
-                }
                 if !(a.iter().all(|v| v.is_finite()) && g.iter().all(|v| v.is_finite())) {
                     break End::Stalled;
                 }
@@ -302,7 +299,7 @@ impl Ik {
                     self.fk.accept();
                     fresh = false;
                     if let Some(gd) = &mut guard {
-                        gd.took(margin);
+                        gd.took(&t);
                         if gd.allows(margin) {
                             kept.push(Kept::new(&q, tip, cost, margin));
                         }
@@ -348,9 +345,13 @@ impl Ik {
             feasible: true,
             held: false,
         };
-        if let Some(gd) = guard {
-            attempt.held = gd.held;
-            self.settle(&mut attempt, &kept, gd.floor);
+        match guard {
+            Some(gd) => {
+                attempt.held = gd.held;
+                self.settle(&mut attempt, &kept, gd.floor);
+            }
+            // without a floor the iterates have no margin: the result's, on its branch
+            None => attempt.margin = self.fk.margin(&attempt.q),
         }
         if attempt.end != End::Reached && attempt.feasible && self.reached(target, &attempt.tip) {
             attempt.end = End::Reached;

@@ -10,6 +10,7 @@
 //! simulation of recordings (and so the diagnosis) and the inverse kinematics all solve
 //! through it.
 
+use crate::margin::{self, Margin, PROBE_STEP};
 use ctr_core::{
     Effects as CoreEffects, Gravity, JointJacobian, Joints, Loads, Model, Request, Robot, Solution,
     SolveError, Solver, MAX_TUBES,
@@ -67,6 +68,54 @@ impl<const N: usize> Kernel<N> {
         force_n: [f64; 3],
     ) -> Result<Solution<f64, N>, SolveError> {
         solver.solve(&self.robot, self.request(q, force_n))
+    }
+
+    /// The stability margin ([`crate::margin`]) of `sol`, just solved at actual joints
+    /// `q` under `force_n` by `solver` (its memory now on `sol`): the sign of the softest
+    /// mode where that is far from any fold, else the distance to the fold from central
+    /// differences of warm solves, each settled (solved twice, so that the softest mode
+    /// is that of the solution's own shooting Jacobian, not of Newton's iterate before
+    /// it). The solver is not moved.
+    pub fn margin(
+        &self,
+        solver: &Solver<f64, N>,
+        q: Joints<f64, N>,
+        force_n: [f64; 3],
+        sol: &Solution<f64, N>,
+    ) -> Margin {
+        let softest = sol.softest_mode;
+        if !softest.is_finite() || margin::is_far(softest) {
+            return Margin::new(softest, &[]);
+        }
+        let settled = |q: Joints<f64, N>| -> Option<f64> {
+            let mut s = *solver;
+            self.solve(&mut s, q, force_n).ok()?;
+            let again = self.solve(&mut s, q, force_n).ok()?;
+            let v = again.softest_mode;
+            // a probe past the fold (or that failed) says nothing of this branch
+            (v.is_finite() && v.signum() == softest.signum()).then_some(v)
+        };
+        let at = settled(q).unwrap_or(softest);
+        let rad = PROBE_STEP.to_radians();
+        let mut gradient = [0.0; 2 * MAX_TUBES];
+        for (k, g) in gradient.iter_mut().enumerate().take(2 * N) {
+            let moved = |sign: f64| {
+                let mut p = q;
+                if k < N {
+                    p.s_mm[k] += sign * PROBE_STEP;
+                } else {
+                    p.theta_rad[k - N] += sign * rad;
+                }
+                settled(p)
+            };
+            *g = match (moved(1.0), moved(-1.0)) {
+                (Some(up), Some(down)) => (up - down) / (2.0 * PROBE_STEP),
+                (Some(up), None) => (up - at) / PROBE_STEP,
+                (None, Some(down)) => (at - down) / PROBE_STEP,
+                (None, None) => 0.0,
+            };
+        }
+        Margin::new(at, &gradient[..2 * N])
     }
 
     /// [`solve`](Self::solve) with the backbone points written into `points` (as far as
@@ -153,14 +202,28 @@ macro_rules! each_count {
 
 impl Bound<'_> {
     /// The tip of actual joints in file order and units (mm, degrees) under the tip
-    /// force `force_n`, warm-started.
+    /// force `force_n`, warm-started; with its stability margin when `margins` (else
+    /// NaN: the margin's probes cost solves).
     ///
     /// # Panics
     /// If `actual.len()` is not twice the tube count.
-    pub fn fk(&mut self, actual: &[f64], force_n: [f64; 3]) -> Result<FkResult, SolveError> {
-        each_count!(self, |k, s| k
-            .solve(s, joints_of(actual), force_n)
-            .map(|sol| FkResult::from_solution(&sol)))
+    pub fn fk(
+        &mut self,
+        actual: &[f64],
+        force_n: [f64; 3],
+        margins: bool,
+    ) -> Result<FkResult, SolveError> {
+        each_count!(self, |k, s| {
+            let q = joints_of(actual);
+            k.solve(s, q, force_n).map(|sol| {
+                let m = if margins {
+                    k.margin(s, q, force_n, &sol).value
+                } else {
+                    f64::NAN
+                };
+                FkResult::from_solution(&sol, m)
+            })
+        })
     }
 
     /// [`fk`](Self::fk) with the backbone points (x, y, z, mm, from the guide exit to
@@ -172,15 +235,24 @@ impl Bound<'_> {
         &mut self,
         actual: &[f64],
         force_n: [f64; 3],
+        margins: bool,
     ) -> Result<(FkResult, Vec<[f64; 3]>), SolveError> {
         /// Points a backbone buffer starts with (grown to what the solve reports).
         const FIRST_POINTS: usize = 256;
         let mut points = vec![Vector3::zeros(); FIRST_POINTS];
         let memory = self.clone();
         loop {
-            let sol = each_count!(&mut *self, |k, s| k
-                .backbone(s, joints_of(actual), force_n, &mut points)
-                .map(|sol| (FkResult::from_solution(&sol), sol.backbone_points)))?;
+            let sol = each_count!(&mut *self, |k, s| {
+                let q = joints_of(actual);
+                k.backbone(s, q, force_n, &mut points).map(|sol| {
+                    let margin = if margins {
+                        k.margin(s, q, force_n, &sol).value
+                    } else {
+                        f64::NAN
+                    };
+                    (FkResult::from_solution(&sol, margin), sol.backbone_points)
+                })
+            })?;
             let (tip, n) = sol;
             if n <= points.len() {
                 return Ok((tip, points[..n].iter().map(|p| [p.x, p.y, p.z]).collect()));

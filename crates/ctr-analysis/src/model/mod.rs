@@ -36,7 +36,9 @@ mod kernel;
 mod tip;
 
 pub(crate) use kernel::{AnyKernel, Bound, Kernel};
-pub(crate) use tip::{file_jacobian, log_so3, tip_jacobian, CoreFk, Jacobian, TipFk, MAX_JOINTS};
+pub(crate) use tip::{
+    file_jacobian, log_so3, tip_jacobian, CoreFk, Jacobian, Solved, TipFk, MAX_JOINTS,
+};
 pub use tip::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 
 use crate::limits::JointLimits;
@@ -466,6 +468,7 @@ impl RowModel {
             model: self,
             bound: self.kernel.bind(),
             buf: Vec::new(),
+            margins: false,
         }
     }
 }
@@ -477,9 +480,30 @@ pub struct RowSolver<'m> {
     bound: Bound<'m>,
     /// the actual joints of the last commanded row (with joint offsets)
     buf: Vec<f64>,
+    /// every row's stability margin is computed ([`RowSolver::with_margins`])
+    margins: bool,
 }
 
 impl RowSolver<'_> {
+    /// This solver with every row's stability margin ([`crate::margin`]) computed;
+    /// without, [`FkResult::stability_margin`] is NaN (the margin's probes cost up to
+    /// `8 n + 1` more solves on a row whose tubes are softer in twist than uncoupled
+    /// ones).
+    ///
+    /// ```
+    /// use ctr_analysis::model::ModelSpec;
+    /// use ctr_formats::AnyRobot;
+    /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33);
+    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
+    /// assert!(rows.solver().fk(&[50.0, 0.0])?.stability_margin.is_nan());
+    /// assert_eq!(rows.solver().with_margins().fk(&[50.0, 0.0])?.stability_margin, 1.0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn with_margins(mut self) -> Self {
+        self.margins = true;
+        self
+    }
+
     /// Solves the commanded joints of one row (file order and units): the joint offsets
     /// are added, then the mechanics and the measurement (module doc). For models
     /// without time effects (else see [`RowModel::actual_joints`] and
@@ -511,7 +535,7 @@ impl RowSolver<'_> {
         t_s: f64,
         force_n: [f64; 3],
     ) -> Result<FkResult, SolveError> {
-        let mut tip = self.bound.fk(actual, force_n)?;
+        let mut tip = self.bound.fk(actual, force_n, self.margins)?;
         if let Some(c) = &self.model.spec.empirical {
             c.apply(commanded, t_s, &mut tip.position);
         }
@@ -526,7 +550,7 @@ impl RowSolver<'_> {
     /// # Panics
     /// If `actual.len() != 2 * n_tubes`.
     pub fn fk_actual(&mut self, actual: &[f64], force_n: [f64; 3]) -> Result<FkResult, SolveError> {
-        self.bound.fk(actual, force_n)
+        self.bound.fk(actual, force_n, self.margins)
     }
 
     /// [`fk`](Self::fk) with the backbone: the points (x, y, z, mm) from the guide exit
@@ -548,7 +572,7 @@ impl RowSolver<'_> {
     /// If `joints.len() != 2 * n_tubes`.
     pub fn backbone(&mut self, joints: &[f64]) -> Result<(FkResult, Vec<[f64; 3]>), SolveError> {
         let actual = self.actual_of(joints);
-        let out = self.bound.backbone(&actual, [0.0; 3]);
+        let out = self.bound.backbone(&actual, [0.0; 3], self.margins);
         self.buf = actual;
         out
     }

@@ -40,8 +40,12 @@ pub const FD_STEP_RAD: f64 = 1e-6;
 pub(crate) struct Solved {
     /// The tip frame, as measured.
     pub tip: Frame<f64>,
-    /// The core's signed stability margin (`Solution::stability_margin`, dimensionless).
+    /// The stability margin ([`crate::margin`], dimensionless); NaN unless the solver
+    /// computes margins ([`TipFk::with_margins`]).
     pub margin: f64,
+    /// The margin's gradient over the joint slice `s_1, theta_1, ...`: per mm, per rad
+    /// ([`crate::margin::Margin::gradient`]); zero without margins.
+    pub margin_gradient: [f64; MAX_JOINTS],
 }
 
 /// Tip forward kinematics of one robot on joint slices `s_1, theta_1, ...` (mm, rad).
@@ -65,9 +69,13 @@ pub(crate) trait TipFk: Send + Sync {
     /// `2 n` columns of `jac` as [`tip_jacobian`] lays them out; `false` (and `jac`
     /// untouched) where the model has none.
     fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool;
-    /// From now on every solve's margin is settled: read from a second solve at the
-    /// same joints, warm from the first (see [`CoreFk`]).
-    fn settle_margins(&mut self);
+    /// From now on every solve computes its stability margin ([`Kernel::margin`]);
+    /// before, [`Solved::margin`] is NaN (the probes cost solves the IK needs only with
+    /// a margin floor).
+    fn with_margins(&mut self);
+    /// The stability margin at `q` ([`Kernel::margin`]), solved warm from the current
+    /// iterate whether or not every solve computes it; NaN where the solve fails.
+    fn margin(&self, q: &[f64]) -> f64;
 }
 
 /// [`TipFk`] on the row model's mechanics ([`crate::model`]): the robot file's static
@@ -81,8 +89,8 @@ pub(crate) struct CoreFk<const N: usize> {
     offsets: Option<[f64; MAX_JOINTS]>,
     current: Solver<f64, N>,
     pending: Solver<f64, N>,
-    /// margins from a second solve at the same joints ([`TipFk::settle_margins`])
-    settled: bool,
+    /// solves compute their stability margin ([`TipFk::with_margins`])
+    margins: bool,
 }
 
 impl<const N: usize> CoreFk<N> {
@@ -99,7 +107,7 @@ impl<const N: usize> CoreFk<N> {
                 .then(|| core::array::from_fn(|i| offsets.get(i).copied().unwrap_or(0.0))),
             current: s,
             pending: s,
-            settled: false,
+            margins: false,
         }
     }
 
@@ -142,12 +150,7 @@ impl<const N: usize> CoreFk<N> {
             && sol.tip.position.iter().all(|v| v.is_finite())
     }
 
-    /// The tip and margin at `q`. The core's margin is that of the shooting Jacobian at
-    /// Newton's last iterate but one, a step of up to the step tolerance from the
-    /// solution (up to about 4e-5 off on the long-transmission robot); when `settled`, a
-    /// second solve at the same joints starts on the solution itself (the warm guess
-    /// does not move when the joints do not) and its margin is that of the solution's
-    /// own Jacobian.
+    /// The tip at `q`, and its stability margin ([`Kernel::margin`]) when `margins`.
     fn solve(&self, solver: &mut Solver<f64, N>, q: &[f64]) -> Option<Solved> {
         let ok = Self::accepted;
         let mut sol = self.solve_once(solver, q)?;
@@ -159,17 +162,22 @@ impl<const N: usize> CoreFk<N> {
                 return None;
             }
         }
-        let mut margin = sol.stability_margin;
-        if self.settled {
-            margin = self
-                .solve_once(solver, q)
-                .filter(ok)
-                .map_or(margin, |again| again.stability_margin);
-        }
-        Some(Solved {
+        let mut out = Solved {
             tip: sol.tip,
-            margin,
-        })
+            margin: f64::NAN,
+            margin_gradient: [0.0; MAX_JOINTS],
+        };
+        if self.margins {
+            let m = self.kernel.margin(solver, self.actual(q), [0.0; 3], &sol);
+            out.margin = m.value;
+            // the kernel's order s_1..s_n, theta_1..theta_n per degree; the slice's is
+            // interleaved per rad (the offsets are constant: the same gradient)
+            for i in 0..N {
+                out.margin_gradient[2 * i] = m.gradient[i];
+                out.margin_gradient[2 * i + 1] = m.gradient[N + i].to_degrees();
+            }
+        }
+        Some(out)
     }
 }
 
@@ -209,8 +217,17 @@ impl<const N: usize> TipFk for CoreFk<N> {
         Box::new(*self)
     }
 
-    fn settle_margins(&mut self) {
-        self.settled = true;
+    fn with_margins(&mut self) {
+        self.margins = true;
+    }
+
+    fn margin(&self, q: &[f64]) -> f64 {
+        let mut s = self.current;
+        let with = CoreFk {
+            margins: true,
+            ..*self
+        };
+        with.solve(&mut s, q).map_or(f64::NAN, |s| s.margin)
     }
 
     fn jacobian(&self, q: &[f64], jac: &mut Jacobian) -> bool {
@@ -376,8 +393,11 @@ mod tests {
         fn jacobian(&self, _: &[f64], _: &mut Jacobian) -> bool {
             false
         }
-        fn settle_margins(&mut self) {
-            self.0.settle_margins()
+        fn with_margins(&mut self) {
+            self.0.with_margins()
+        }
+        fn margin(&self, q: &[f64]) -> f64 {
+            self.0.margin(q)
         }
     }
 

@@ -88,7 +88,10 @@ pub fn core_rows<const N: usize>(
                 core::array::from_fn(|k| q[2 * k]),
                 core::array::from_fn(|k| q[2 * k + 1]),
             );
-            FkResult::from_solution(&solver.solve(robot, Request::new(q, model)).unwrap())
+            FkResult::from_solution(
+                &solver.solve(robot, Request::new(q, model)).unwrap(),
+                f64::NAN,
+            )
         })
         .collect()
 }

@@ -119,7 +119,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             None => {
                 let unloaded = self.solve(robot, Request::new(*q, Model::Torsion))?;
                 extra_iterations = unloaded.iterations;
-                margin = unloaded.stability_margin;
+                margin = unloaded.softest_mode;
                 x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
             }
         }
@@ -185,7 +185,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             base_angle_rad: exit.angle,
             // the loaded shooting Jacobian mixes units (twists and moments): the
             // unloaded solve's margin is reported
-            stability_margin: margin,
+            softest_mode: margin,
             backbone_points: 0,
         };
         let mut points = 0;

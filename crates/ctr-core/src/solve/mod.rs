@@ -50,7 +50,7 @@ pub enum Status {
     IterationLimit,
     /// The iteration produced non-finite numbers or a singular Jacobian; the result is
     /// the best finite iterate (where its pose is not finite, the rigid model's pose,
-    /// with a stability margin of 0: a result is never NaN).
+    /// with a softest mode of 0: a result is never NaN).
     Diverged,
 }
 
@@ -137,12 +137,14 @@ pub struct Solution<T: Real, const N: usize> {
     pub base_twist_per_mm: [T; N],
     /// Angle of each tube's material frame at the guide exit, rad.
     pub base_angle_rad: [T; N],
-    /// Elastic stability margin: the smallest singular value of the shooting Jacobian
-    /// `d u_i(s_i) / d u_k(0)` (dimensionless; 1 for tubes that do not interact), signed
-    /// with its determinant. It falls to zero where the robot snaps (a bifurcation of the
-    /// twist boundary-value problem) and is negative on a branch past one (an unstable
-    /// equilibrium); 1 for the `rigid` model and a single tube.
-    pub stability_margin: T,
+    /// Stiffness of the softest twist mode relative to uncoupled tubes: the smallest
+    /// singular value of the shooting Jacobian `d u_i(s_i) / d u_k(0)` (dimensionless; 1
+    /// for tubes that do not interact), signed with its determinant. It falls to zero
+    /// where the robot snaps (a fold of the twist boundary-value problem, where it goes as
+    /// the square root of the joint distance left) and is negative on a branch past one
+    /// (an unstable equilibrium); 1 for the `rigid` model and a single tube. The std
+    /// layer turns it into a distance to the snap (`ctr_analysis::margin`).
+    pub softest_mode: T,
     /// Points the backbone has ([`Request::backbone`]; written as far as the buffer
     /// reached); 0 without a buffer.
     pub backbone_points: usize,
@@ -161,7 +163,7 @@ impl<T: Real, const N: usize> Solution<T, N> {
             iterations: 0,
             base_twist_per_mm: [nan; N],
             base_angle_rad: [nan; N],
-            stability_margin: nan,
+            softest_mode: nan,
             backbone_points: 0,
         }
     }

@@ -143,7 +143,7 @@ fn pose<T: Real, const N: usize>(
         iterations: 0,
         base_twist_per_mm: exit.twist,
         base_angle_rad: exit.angle,
-        stability_margin: T::one(),
+        softest_mode: T::one(),
         backbone_points: points,
     };
 }
@@ -245,9 +245,8 @@ impl<T: Real, const N: usize> Solver<T, N> {
         // the branch the last solution was on ends at a fold, where a warm start fails
         // or lands on the unstable side: the robot snaps to a stable branch (`snap`);
         // a cold start that lands on an unstable equilibrium looks for a stable one
-        let unstable = |sol: &Solution<T, N>| {
-            sol.status == Status::Converged && sol.stability_margin < T::zero()
-        };
+        let unstable =
+            |sol: &Solution<T, N>| sol.status == Status::Converged && sol.softest_mode < T::zero();
         if sol.status != Status::Converged || unstable(sol) {
             let iterations = sol.iterations;
             // from the last equilibrium (where the branch was stable), else from where
@@ -301,7 +300,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             sol.iterations += iterations;
         }
         if sol.status == Status::Converged {
-            self.remember(q, &sol.base_twist_per_mm, sol.stability_margin);
+            self.remember(q, &sol.base_twist_per_mm, sol.softest_mode);
         }
     }
 
@@ -349,7 +348,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             );
             sol.iterations = newton.iterations;
             if m > 0 && newton.iterations > 0 {
-                sol.stability_margin = smallest_singular_value(&newton.jacobian, m);
+                sol.softest_mode = smallest_singular_value(&newton.jacobian, m);
             }
             let r = sol.residual_per_mm;
             let finite = sol.tip.position.iter().all(|v| v.is_finite()) && r.is_finite();
@@ -362,7 +361,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 };
                 pose(&rigid, inp, trace.as_deref_mut(), registration, sol);
                 sol.iterations = newton.iterations;
-                sol.stability_margin = T::zero();
+                sol.softest_mode = T::zero();
             }
             sol.status = if diverged || !finite {
                 Status::Diverged
@@ -419,6 +418,6 @@ impl<T: Real, const N: usize> Solver<T, N> {
         );
         sol.status = status;
         sol.iterations = free.iterations + newton.iterations;
-        sol.stability_margin = free.stability_margin;
+        sol.softest_mode = free.softest_mode;
     }
 }

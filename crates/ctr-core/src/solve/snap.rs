@@ -6,7 +6,7 @@
 //! `r(x) = (u_1(s_1), ..., u_{n-1}(s_{n-1}))` of the base twist rates `x`
 //! ([`crate::integrate::twist`]). Along a joint path they form branches; a branch ends at
 //! a fold, where the shooting Jacobian `R_x` is singular and the stability margin
-//! ([`super::Solution::stability_margin`]) is zero: there a stable equilibrium meets an
+//! ([`super::Solution::softest_mode`]) is zero: there a stable equilibrium meets an
 //! unstable one and both vanish. A robot moved past a fold snaps (Dupont et al., IEEE
 //! T-RO 26(2) 2010; Gilbert, Hendrick & Webster, IEEE T-RO 32(1) 2016): it leaves along
 //! the mode that went soft, the right singular vector `v` of the smallest singular value
@@ -181,7 +181,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 registration,
                 &mut candidate,
             );
-            if candidate.status == Status::Converged && candidate.stability_margin > T::zero() {
+            if candidate.status == Status::Converged && candidate.softest_mode > T::zero() {
                 let x = candidate.base_twist_per_mm;
                 let iterations = candidate.iterations;
                 // once more from the root itself, tracing the backbone where asked

@@ -262,7 +262,7 @@ impl Robot {
         let rows = self.read_joints(q, "q")?;
         let times = self.times_arg(&fkm, t_s, &rows)?;
         let tips = py
-            .detach(|| self.tips(&fkm, &rows, times.as_deref(), threads, mark))
+            .detach(|| self.tips(&fkm, &rows, times.as_deref(), threads, mark, margin))
             .map_err(|e| errors::to_py(&e))?;
         let (positions, quaternions) = (tips.positions, tips.quaternions);
         let (statuses, residuals) = (tips.statuses, tips.residuals);

@@ -58,7 +58,8 @@ pub(super) fn solver_failed(
 impl Robot {
     /// The tips of `rows` under the row model `fkm` ([`batch_fk`], as `ctr-cli fk`
     /// solves a joint file); `mark` keeps rows that did not converge with their status,
-    /// else the first such row is the error.
+    /// else the first such row is the error; `margins` computes each row's stability
+    /// margin (else NaN).
     pub(super) fn tips(
         &self,
         fkm: &RowModel,
@@ -66,10 +67,12 @@ impl Robot {
         times: Option<&[f64]>,
         threads: usize,
         mark: bool,
+        margins: bool,
     ) -> Result<Tips, Error> {
         self.check_joints(rows, "q")?;
         let options = BatchOptions {
             threads,
+            margins,
             ..BatchOptions::default()
         };
         let results = batch_fk(fkm, &rows.data, times, &options, &())
