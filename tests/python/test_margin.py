@@ -196,10 +196,14 @@ def test_diagnose_and_evaluate_mark_the_rows_before_a_snap(cli, tmp_path):
     assert p.returncode == 0, p.stderr
     assert json.loads(out.read_text())["stability"] == s
     assert p.stdout == report.summary()
-    # the default warning margin (fk's, 0.05) does not reach the rows of a 1 deg path
+    # the default warning margin (fk's, 0.05: about a degree) marks only the last rows
+    # before each jump of a 1 deg path, inside the ranges 0.3 marks
     default = ctr_py.diagnose(robot, str(rec))
     assert default.stability["warn_margin"] == 0.05
-    assert default.stability["fitted"]["near_snap"] == []
+    near = default.stability["fitted"]["near_snap"]
+    assert [r["lines"][1] for r in near] == before, near
+    wide = s["fitted"]["near_snap"]
+    assert all(r["rows"] <= 2 and r["rows"] < w["rows"] for r, w in zip(near, wide))
 
     # evaluate: per run and per model, and the CLI's line after its table
     table = ctr_py.evaluate([robot], str(rec), warn_margin=0.3)

@@ -11,6 +11,7 @@
 //! makes even those last bits reproducible.
 
 use crate::ik::{Ik, IkResult};
+use crate::margin::Margins;
 use crate::model::{ModelError, RowModel, RowSolver};
 use ctr_core::SolveError;
 use ctr_formats::parallel::{for_each_chunk, Progress};
@@ -31,6 +32,17 @@ pub struct BatchOptions {
     /// Compute every row's stability margin ([`crate::margin`]; else
     /// [`FkResult::stability_margin`] is NaN).
     pub margins: bool,
+}
+
+impl BatchOptions {
+    /// The margins [`Self::margins`] asks for.
+    fn margins(&self) -> Margins {
+        if self.margins {
+            Margins::Exact
+        } else {
+            Margins::Off
+        }
+    }
 }
 
 impl Default for BatchOptions {
@@ -126,20 +138,13 @@ pub fn solve_rows<'m>(
     rows: Rows<'_>,
     range: Range<usize>,
     chunk_rows: usize,
-    margins: bool,
+    margins: Margins,
     after: Option<&RowSolver<'m>>,
     mut each: impl FnMut(usize, Result<FkResult, SolveError>) -> bool,
 ) -> RowSolver<'m> {
     let width = 2 * model.robot().n_tubes();
     let chunk = chunk_rows.max(1);
-    let fresh = || {
-        let s = model.solver();
-        if margins {
-            s.with_margins()
-        } else {
-            s
-        }
-    };
+    let fresh = || model.solver().margins(margins);
     let mut solver = fresh();
     for row in range.clone() {
         let tip = if row % chunk == 0 || row == range.start {
@@ -263,7 +268,7 @@ pub fn batch_fk(
                 rows,
                 range,
                 options.chunk_rows,
-                options.margins,
+                options.margins(),
                 None,
                 |_, r| {
                     results.push(r);
@@ -288,7 +293,7 @@ pub fn batch_fk(
                         rows,
                         range,
                         options.chunk_rows,
-                        options.margins,
+                        options.margins(),
                         Some(after),
                         |_, r| {
                             results.push(r);

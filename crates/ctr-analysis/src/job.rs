@@ -11,6 +11,7 @@
 
 use crate::batch::{batch_ik, branch_changed, solve_rows, IkBatchOptions, Rows, WARM_CHUNK_ROWS};
 use crate::ik::{Ik, IkOptions, IkStatus};
+use crate::margin::Margins;
 use crate::model::{ModelError, ModelSpec, RowModel, RowSolver, EMPIRICAL};
 use ctr_core::{Model, SolveError, Status};
 use ctr_formats::parallel::{for_each_chunk, Progress};
@@ -210,7 +211,12 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
                 end: None,
             };
             let start = rows.start;
-            let margins = job.margin || job.warn_margin.is_some();
+            // the column wants every margin, a warning only those below it
+            let margins = match (job.margin, job.warn_margin) {
+                (true, _) => Margins::Exact,
+                (false, Some(x)) => Margins::Below(x),
+                (false, None) => Margins::Off,
+            };
             let end = solve_rows(
                 &fkm,
                 joints,

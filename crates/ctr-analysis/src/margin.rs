@@ -17,7 +17,7 @@
 //! the nearest fold to first order, whatever `c` is (at a symmetric pitchfork, where
 //! `sigma` falls linearly with the feed, it is half of it: on the safe side). The
 //! gradient is over all joints, a degree of rotation weighing as a millimetre of feed,
-//! by central differences of warm solves
+//! by forward differences of warm solves
 //! ([`PROBE_STEP`]); the margin is that distance over [`REFERENCE_DISTANCE`], capped at
 //! 1, with the sign of `sigma`:
 //!
@@ -80,11 +80,26 @@ pub const FADE_FROM: f64 = 0.5;
 /// the sweeps that do not snap (README, "Snap-through").
 pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
 
-/// Step of the margin's central differences: mm on feeds, degrees on rotations.
+/// Step of the margin's forward differences (backward where the forward probe crosses the
+/// fold): mm on feeds, degrees on rotations.
 pub const PROBE_STEP: f64 = 1e-3;
 
 /// Most joints a margin has a gradient over (`2 MAX_TUBES`).
 pub const MAX_JOINTS: usize = 2 * MAX_TUBES;
+
+/// Which rows a solver computes the margin of.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Margins {
+    /// None: the margin is NaN (a solve costs nothing more).
+    #[default]
+    Off,
+    /// Exactly where it may be below `X` (a warning margin); elsewhere the lower bound
+    /// the fade gives from `sigma` alone ([`Margin::at_least`], at least `X`), without
+    /// probing. Enough to tell the rows below `X` at a fraction of the cost.
+    Below(f64),
+    /// Every row's, exactly.
+    Exact,
+}
 
 /// A stability margin and its gradient.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,7 +137,7 @@ impl Margin {
             (distance, 1.0 / (2.0 * norm * REFERENCE_DISTANCE))
         };
         let band = FAR_SOFTEST - FADE_FROM;
-        let t = ((size - FADE_FROM) / band).clamp(0.0, 1.0);
+        let t = fade(size);
         let t_slope = if t > 0.0 && t < 1.0 { 1.0 / band } else { 0.0 };
         out.value = sign * ((1.0 - t) * near + t);
         // d margin / d sigma, |grad sigma| fixed: the sign cancels (the margin is odd)
@@ -132,6 +147,34 @@ impl Margin {
         }
         out
     }
+}
+
+impl Margin {
+    /// What the softest mode alone says of the margin: its magnitude is at least the
+    /// fade's weight `t` (module doc), whatever the gradient; this is that bound, with
+    /// the sign of `softest` and a zero gradient (the margin itself where `|sigma|` is
+    /// at least [`FAR_SOFTEST`]).
+    ///
+    /// ```
+    /// use ctr_analysis::margin::Margin;
+    /// assert_eq!(Margin::at_least(-0.75).value, -0.5);
+    /// assert!(Margin::new(0.75, &[0.3, 0.2]).value >= Margin::at_least(0.75).value);
+    /// ```
+    pub fn at_least(softest: f64) -> Self {
+        Margin {
+            value: if softest.is_nan() {
+                softest
+            } else {
+                softest.signum() * fade(softest.abs())
+            },
+            gradient: [0.0; MAX_JOINTS],
+        }
+    }
+}
+
+/// The fade's weight `t` at a softest mode of magnitude `size` (module doc).
+fn fade(size: f64) -> f64 {
+    ((size - FADE_FROM) / (FAR_SOFTEST - FADE_FROM)).clamp(0.0, 1.0)
 }
 
 /// The margin of a softest mode `softest` whose gradient over the joints is `gradient`

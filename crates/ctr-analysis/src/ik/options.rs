@@ -63,11 +63,10 @@ pub struct IkResult {
     pub iterations: u32,
     /// Starts tried (1 when the first reached).
     pub starts: u32,
-    /// The stability margin of the equilibrium `tip` is on (`Solution::stability_margin`
-    /// on the branch the steps followed; dimensionless; NaN when the status is
-    /// `FkFailed`). With [`IkOptions::min_margin`] it is settled (module doc, "Stability
-    /// margin") and at least `min_margin + MARGIN_SLACK`, and so is the margin of `q`
-    /// solved cold.
+    /// The stability margin ([`crate::margin`]) of the equilibrium `tip` is on, on the
+    /// branch the steps followed (dimensionless; NaN when the status is `FkFailed`).
+    /// With [`IkOptions::min_margin`] it is at least `min_margin + MARGIN_SLACK`, and so
+    /// is the margin of `q` solved cold.
     pub stability_margin: f64,
     /// How it ended.
     pub status: IkStatus,
@@ -104,8 +103,8 @@ pub struct IkOptions {
     pub seed: u64,
     /// Points in the start table (drawn inside the limits when the [`Ik`] is built).
     pub seed_samples: usize,
-    /// Smallest stability margin allowed (dimensionless, the scale of
-    /// `Solution::stability_margin`: about 1 far from a snap, 0 at one): no iterate, and
+    /// Smallest stability margin allowed (dimensionless, [`crate::margin`]: 1 with no
+    /// snap within about 20 degrees or mm, 0 at one; at most 1): no iterate, and
     /// so no result, has a smaller one. A constraint of every step (module doc,
     /// "Stability margin"), not a filter of the results. `None`: unconstrained.
     pub min_margin: Option<f64>,

@@ -10,7 +10,7 @@
 //! simulation of recordings (and so the diagnosis) and the inverse kinematics all solve
 //! through it.
 
-use crate::margin::{self, Margin, PROBE_STEP};
+use crate::margin::{self, Margin, Margins, PROBE_STEP};
 use ctr_core::{
     Effects as CoreEffects, Gravity, JointJacobian, Joints, Loads, Model, Request, Robot, Solution,
     SolveError, Solver, MAX_TUBES,
@@ -72,18 +72,27 @@ impl<const N: usize> Kernel<N> {
 
     /// The stability margin ([`crate::margin`]) of `sol`, just solved at actual joints
     /// `q` under `force_n` by `solver` (its memory now on `sol`): the sign of the softest
-    /// mode where that is far from any fold, else the distance to the fold from central
+    /// mode where that is far from any fold, else the distance to the fold from forward
     /// differences of warm solves, each settled (solved twice, so that the softest mode
     /// is that of the solution's own shooting Jacobian, not of Newton's iterate before
-    /// it). The solver is not moved.
+    /// it). With `need` [`Margins::Below`] only where it may be below. The solver is
+    /// not moved.
     pub fn margin(
         &self,
         solver: &Solver<f64, N>,
         q: Joints<f64, N>,
         force_n: [f64; 3],
         sol: &Solution<f64, N>,
+        need: Margins,
     ) -> Margin {
         let softest = sol.softest_mode;
+        match need {
+            Margins::Off => return Margin::new(f64::NAN, &[]),
+            Margins::Below(x) if Margin::at_least(softest).value.abs() >= x => {
+                return Margin::at_least(softest)
+            }
+            _ => {}
+        }
         if !softest.is_finite() || margin::is_far(softest) {
             return Margin::new(softest, &[]);
         }
@@ -108,11 +117,10 @@ impl<const N: usize> Kernel<N> {
                 }
                 settled(p)
             };
-            *g = match (moved(1.0), moved(-1.0)) {
-                (Some(up), Some(down)) => (up - down) / (2.0 * PROBE_STEP),
-                (Some(up), None) => (up - at) / PROBE_STEP,
-                (None, Some(down)) => (at - down) / PROBE_STEP,
-                (None, None) => 0.0,
+            // forward, or backward where the forward probe crossed the fold or failed
+            *g = match moved(1.0) {
+                Some(up) => (up - at) / PROBE_STEP,
+                None => moved(-1.0).map_or(0.0, |down| (at - down) / PROBE_STEP),
             };
         }
         Margin::new(at, &gradient[..2 * N])
@@ -211,16 +219,12 @@ impl Bound<'_> {
         &mut self,
         actual: &[f64],
         force_n: [f64; 3],
-        margins: bool,
+        margins: Margins,
     ) -> Result<FkResult, SolveError> {
         each_count!(self, |k, s| {
             let q = joints_of(actual);
             k.solve(s, q, force_n).map(|sol| {
-                let m = if margins {
-                    k.margin(s, q, force_n, &sol).value
-                } else {
-                    f64::NAN
-                };
+                let m = k.margin(s, q, force_n, &sol, margins).value;
                 FkResult::from_solution(&sol, m)
             })
         })
@@ -235,7 +239,7 @@ impl Bound<'_> {
         &mut self,
         actual: &[f64],
         force_n: [f64; 3],
-        margins: bool,
+        margins: Margins,
     ) -> Result<(FkResult, Vec<[f64; 3]>), SolveError> {
         /// Points a backbone buffer starts with (grown to what the solve reports).
         const FIRST_POINTS: usize = 256;
@@ -245,11 +249,7 @@ impl Bound<'_> {
             let sol = each_count!(&mut *self, |k, s| {
                 let q = joints_of(actual);
                 k.backbone(s, q, force_n, &mut points).map(|sol| {
-                    let margin = if margins {
-                        k.margin(s, q, force_n, &sol).value
-                    } else {
-                        f64::NAN
-                    };
+                    let margin = k.margin(s, q, force_n, &sol, margins).value;
                     (FkResult::from_solution(&sol, margin), sol.backbone_points)
                 })
             })?;

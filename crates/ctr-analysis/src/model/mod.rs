@@ -42,6 +42,7 @@ pub(crate) use tip::{
 pub use tip::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 
 use crate::limits::JointLimits;
+use crate::margin::Margins;
 use crate::timeline::{actual_joints, TimeEffects};
 use ctr_core::{Model, SolveError};
 use ctr_formats::{AnyRobot, Correction, Effects, ErrorKind, FkResult, RobotSpec};
@@ -468,7 +469,7 @@ impl RowModel {
             model: self,
             bound: self.kernel.bind(),
             buf: Vec::new(),
-            margins: false,
+            margins: Margins::Off,
         }
     }
 }
@@ -480,14 +481,14 @@ pub struct RowSolver<'m> {
     bound: Bound<'m>,
     /// the actual joints of the last commanded row (with joint offsets)
     buf: Vec<f64>,
-    /// every row's stability margin is computed ([`RowSolver::with_margins`])
-    margins: bool,
+    /// which rows' stability margins are computed ([`RowSolver::margins`])
+    margins: Margins,
 }
 
 impl RowSolver<'_> {
     /// This solver with every row's stability margin ([`crate::margin`]) computed;
     /// without, [`FkResult::stability_margin`] is NaN (the margin's probes cost up to
-    /// `8 n + 1` more solves on a row whose tubes are softer in twist than uncoupled
+    /// `4 n + 2` more solves on a row whose tubes are softer in twist than uncoupled
     /// ones).
     ///
     /// ```
@@ -499,8 +500,14 @@ impl RowSolver<'_> {
     /// assert_eq!(rows.solver().with_margins().fk(&[50.0, 0.0])?.stability_margin, 1.0);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
-    pub fn with_margins(mut self) -> Self {
-        self.margins = true;
+    pub fn with_margins(self) -> Self {
+        self.margins(Margins::Exact)
+    }
+
+    /// This solver with the stability margins `which` computes ([`Margins`]; the
+    /// default is [`Margins::Off`]).
+    pub fn margins(mut self, which: Margins) -> Self {
+        self.margins = which;
         self
     }
 

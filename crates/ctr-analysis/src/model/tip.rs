@@ -16,6 +16,7 @@
 
 use super::Kernel;
 use crate::limits::JointLimits;
+use crate::margin::Margins;
 use ctr_core::{Frame, JointJacobian, Joints, Solver, SolverConfig, Status};
 use ctr_formats::joints_of;
 use nalgebra::{Matrix3, Rotation3, SMatrix, UnitQuaternion, Vector3};
@@ -168,7 +169,9 @@ impl<const N: usize> CoreFk<N> {
             margin_gradient: [0.0; MAX_JOINTS],
         };
         if self.margins {
-            let m = self.kernel.margin(solver, self.actual(q), [0.0; 3], &sol);
+            let m = self
+                .kernel
+                .margin(solver, self.actual(q), [0.0; 3], &sol, Margins::Exact);
             out.margin = m.value;
             // the kernel's order s_1..s_n, theta_1..theta_n per degree; the slice's is
             // interleaved per rad (the offsets are constant: the same gradient)

@@ -170,10 +170,10 @@ class Robot:
         rad/mm. (The CLI's ``skip`` has no counterpart: mask with the status.)
 
         ``margin=True`` returns one more result, last: every row's elastic stability
-        margin, shape ``(m,)`` (a float for one row), the CLI's ``--margin`` column: 1
-        for tubes that do not interact (above 1 where the coupling stiffens the twist),
-        falling to 0 at a snap, negative on an unstable branch (see the README,
-        "Snap-through"). Rows are solved as the CLI solves a file, so a batch along a
+        margin, shape ``(m,)`` (a float for one row), the CLI's ``--margin`` column: the
+        joint distance to the nearest snap over 20 degrees of rotation or mm of feed,
+        capped at 1 (1: no snap within about 20 degrees or mm; 0.05: about one away),
+        0 at a snap, negative on an unstable branch (see the README, "Snap-through"). Rows are solved as the CLI solves a file, so a batch along a
         path follows the branch the robot follows.
 
         Effects: the robot file's ``[model.effects]`` are applied as ``ctr-cli fk``
@@ -276,8 +276,8 @@ class Robot:
         not an error.
 
         ``min_margin`` (``ctr-cli ik --min-margin``): no joints returned have a
-        stability margin (the one ``fk(q, margin=True)`` returns; dimensionless, about
-        1 far from a snap, 0 at one) below it; where the tubes are bistable, neither
+        stability margin (the one ``fk(q, margin=True)`` returns; dimensionless, 1 with
+        no snap within about 20 degrees or mm, 0 at one) below it; where the tubes are bistable, neither
         the equilibrium the solve followed nor the one a cold solve finds. It is a
         constraint of every step: a target reachable only less stable gets the closest
         point found within it, status ``"unreachable_with_margin"``. A value that is
