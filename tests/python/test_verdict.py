@@ -97,3 +97,36 @@ def test_every_parameter_has_an_interval_that_holds_the_concealed_value(robot):
     lo, hi = found["clearance"]["ci95"]["max_deflection_deg"][0]
     assert lo <= KINK_DEG <= hi
     assert "95 % intervals: tau_s" in report.summary()
+
+
+def test_the_fitted_robot_with_the_empirical_term_is_the_clis(cli, robot, drifted, tmp_path):
+    """`Report.fitted_with_empirical` is the file `--with-empirical --out` writes, its fk
+    applies the correction (closer to the drifted tips than the physics alone), and it
+    pickles; on an explained recording it is `fitted`."""
+    import pickle
+    import subprocess
+
+    import numpy as np
+
+    rec = ctr_py.read_recording(drifted, robot)
+    report = ctr_py.diagnose(robot, rec)
+    hybrid = report.fitted_with_empirical
+    assert hybrid != report.fitted and "[model.empirical]" in hybrid.to_toml()
+    out = tmp_path / "fitted.toml"
+    p = subprocess.run(
+        [str(cli), "diagnose", "--robot", str(ROBOT), "--recording", str(drifted),
+         "--with-empirical", "--out", str(out)],
+        capture_output=True, text=True, stdin=subprocess.DEVNULL,
+    )
+    assert p.returncode == 0, p.stderr
+    assert out.read_text().split("\n", 1)[1] == hybrid.to_toml()
+
+    def rms(model):
+        err = [model.fk(rec.joints[r], t_s=rec.t_s[r])[0] - rec.tip[r] for _, r in rec.runs]
+        return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+    assert rms(hybrid) < rms(report.fitted)
+    back = pickle.loads(pickle.dumps(report))
+    assert back.fitted_with_empirical == hybrid
+    explained = ctr_py.diagnose(robot, ctr_py.read_recording(EXAMPLE, robot))
+    assert explained.fitted_with_empirical == explained.fitted

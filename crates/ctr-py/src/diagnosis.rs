@@ -146,6 +146,9 @@ pub struct Report {
     summary: String,
     /// The fitted model.
     fitted: Py<Robot>,
+    /// The fitted model with the empirical correction (`--with-empirical`); `None`
+    /// when explained (then the same as `fitted`).
+    fitted_empirical: Option<Py<Robot>>,
     /// The recording's file name.
     recording: String,
     /// The user's robot.
@@ -155,8 +158,17 @@ pub struct Report {
 }
 
 /// What a pickled `Report` holds: the JSON text, the summary, the fitted robot, the
-/// recording's file name, the user's robot and the recording.
-type State = (String, String, Py<Robot>, String, Py<Robot>, Py<Recording>);
+/// recording's file name, the user's robot, the recording and (last, so that the earlier
+/// fields keep their places) the fitted robot with the empirical correction.
+type State = (
+    String,
+    String,
+    Py<Robot>,
+    String,
+    Py<Robot>,
+    Py<Recording>,
+    Option<Py<Robot>>,
+);
 
 impl Report {
     fn new(
@@ -170,6 +182,16 @@ impl Report {
         let user = robot.get();
         let fitted = d.fitted_spec(user.spec());
         let fitted = Robot::new(fitted, format!("{} (fitted)", user.source_name()));
+        let fitted_empirical = match &d.empirical {
+            Some(_) => Some(Py::new(
+                py,
+                Robot::new(
+                    d.fitted_spec_with_empirical(user.spec()),
+                    format!("{} (fitted, with empirical)", user.source_name()),
+                ),
+            )?),
+            None => None,
+        };
         let file = rec.get().rec.file.clone();
         Report::_from_state(
             py,
@@ -179,6 +201,7 @@ impl Report {
             file,
             robot.clone().unbind(),
             rec,
+            fitted_empirical,
         )
     }
 
@@ -192,6 +215,8 @@ impl Report {
     /// Rebuilds a pickled report (and builds every report): its JSON text, a JSON
     /// object, parsed here once.
     #[staticmethod]
+    #[pyo3(signature = (json, summary, fitted, recording, user, rec, fitted_empirical = None))]
+    #[allow(clippy::too_many_arguments)]
     fn _from_state(
         py: Python<'_>,
         json: String,
@@ -200,6 +225,7 @@ impl Report {
         recording: String,
         user: Py<Robot>,
         rec: Py<Recording>,
+        fitted_empirical: Option<Py<Robot>>,
     ) -> PyResult<Self> {
         let parsed = py
             .import("json")?
@@ -214,6 +240,7 @@ impl Report {
             value,
             summary,
             fitted,
+            fitted_empirical,
             recording,
             user,
             rec,
@@ -232,6 +259,7 @@ impl Report {
                 r.recording.clone(),
                 r.user.clone_ref(py),
                 r.rec.clone_ref(py),
+                r.fitted_empirical.as_ref().map(|f| f.clone_ref(py)),
             ),
         ))
     }
@@ -293,6 +321,18 @@ impl Report {
     #[getter]
     fn fitted(&self, py: Python<'_>) -> Py<Robot> {
         self.fitted.clone_ref(py)
+    }
+
+    /// The fitted model with the report's empirical correction in `[model.empirical]`
+    /// (after any terms the user's file had): the robot file `ctr-cli diagnose
+    /// --with-empirical --out` writes. The same as `fitted` when the recording is
+    /// explained (no empirical term).
+    #[getter]
+    fn fitted_with_empirical(&self, py: Python<'_>) -> Py<Robot> {
+        self.fitted_empirical
+            .as_ref()
+            .unwrap_or(&self.fitted)
+            .clone_ref(py)
     }
 
     /// The recording's file name.

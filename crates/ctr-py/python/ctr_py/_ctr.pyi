@@ -570,6 +570,14 @@ class Report:
         gives the model's tips. Its :attr:`Robot.source` is the robot's with
         ``" (fitted)"``."""
     @property
+    def fitted_with_empirical(self) -> Robot:
+        """The fitted model with the report's labelled empirical correction in
+        ``[model.empirical]`` (after any terms the robot file had): the file
+        ``ctr-cli diagnose --with-empirical --out`` writes, without its comment line;
+        its ``fk`` applies the correction as ``ctr-cli fk`` does. The same as
+        :attr:`fitted` when the recording is explained (no empirical term). Physics
+        first: use it to predict, not to read causes from."""
+    @property
     def recording(self) -> str:
         """The recording's file name."""
     @property
