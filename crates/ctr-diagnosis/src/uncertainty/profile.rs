@@ -104,33 +104,44 @@ impl Assessment {
         let dir = ca * (sign / var_c);
         let wald = self.t * var_r.sqrt();
         // the path stops at the first bound of a parameter that moves the output along it
-        let limit = deps
+        // (`stop`: that parameter and its bound)
+        let (limit, stop) = deps
             .iter()
             .filter(|&&k| (a[k] * dir[k]).abs() >= MOVES_OUTPUT)
-            .map(|&k| {
+            .filter_map(|&k| {
                 let (lo, hi) = self.bounds[k];
                 match dir[k] {
-                    v if v > 0.0 => (hi - self.x[k]) / v,
-                    v if v < 0.0 => (lo - self.x[k]) / v,
-                    _ => f64::INFINITY,
+                    v if v > 0.0 => Some(((hi - self.x[k]) / v, Some((k, hi)))),
+                    v if v < 0.0 => Some(((lo - self.x[k]) / v, Some((k, lo)))),
+                    _ => None,
                 }
             })
-            .fold(MAX_WIDEN * wald, f64::min)
-            .max(0.0);
+            .fold(
+                (MAX_WIDEN * wald, None),
+                |m, c| if c.0 < m.0 { c } else { m },
+            );
+        let limit = limit.max(0.0);
         let h_pinv = &self.classic / self.s2;
         let ha = &h_pinv * a;
         let a_ha = a.dot(&ha);
         let reference = self.reference(problem);
         // the deviance at `d` and the point reached
         let deviance = |d: f64| -> Option<(f64, Vec<f64>)> {
-            let x1 = self.clamped((0..np).map(|k| self.x[k] + d * dir[k]).collect());
+            // at the limit the bound itself, not the rounding of `x + d dir` next to it
+            let at_limit = |mut x: Vec<f64>| {
+                if let (true, Some((k, bound))) = (d >= limit, stop) {
+                    x[k] = bound;
+                }
+                x
+            };
+            let x1 = at_limit(self.clamped((0..np).map(|k| self.x[k] + d * dir[k]).collect()));
             let e = problem.errors(&problem.predictions(&x1)?);
             let (c1, w) = problem.cost(&e);
             // one Gauss-Newton step of the others, g held, with the Jacobian at x
             let r = self.gradient(&e, &w);
             let lambda = if a_ha > 0.0 { ha.dot(&r) / a_ha } else { 0.0 };
             let step = -(&h_pinv * (r - a * lambda));
-            let x2 = self.clamped((0..np).map(|k| x1[k] + step[k]).collect());
+            let x2 = at_limit(self.clamped((0..np).map(|k| x1[k] + step[k]).collect()));
             let (c, x) = match problem.cost_at(&x2) {
                 Some(c2) if c2 < c1 => (c2, x2),
                 _ => (c1, x1),
