@@ -399,9 +399,21 @@ pub fn diagnose(
 /// Why a finding was taken out after the search, for its trial.
 fn removed_note(ch: &verify::Checked) -> String {
     match &ch.failure {
-        Some(verify::Failure::Empirical { heldout_rms_mm }) => format!(
+        Some(verify::Failure::Empirical {
+            heldout_rms_mm,
+            tip: false,
+        }) => format!(
             "{REMOVED}a generic empirical correction of as many parameters, \
              in its place, does as well on held-out rows ({heldout_rms_mm:.3} mm)"
+        ),
+        Some(verify::Failure::Empirical {
+            heldout_rms_mm,
+            tip: true,
+        }) => format!(
+            "{REMOVED}a generic empirical correction of as many parameters, linear in the \
+             joints, time and tip position, in its place, explains the data as well \
+             ({heldout_rms_mm:.3} mm held out): the data cannot tell it from an error \
+             outside the vocabulary such as a tracker's scale error"
         ),
         Some(verify::Failure::Varying {
             feature,
