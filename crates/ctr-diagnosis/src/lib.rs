@@ -119,8 +119,8 @@ pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::{Checks, Options};
 pub use plots::Plot;
 pub use report::{
-    fitted_file, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval, Figures,
-    Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
+    fitted_file, Alternative, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
+    Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};

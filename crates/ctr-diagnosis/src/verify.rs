@@ -393,7 +393,7 @@ const PAIRED_BLOCK_ROWS: usize = 10;
 /// [`Z975`] times its standard error, taken over blocks of up to
 /// [`PAIRED_BLOCK_ROWS`] consecutive held-out rows (so errors correlated along a run
 /// count once per block).
-fn clearly_lower(a: &[RowError], b: &[RowError], held: &[bool]) -> bool {
+pub(crate) fn clearly_lower(a: &[RowError], b: &[RowError], held: &[bool]) -> bool {
     let mut blocks: Vec<(f64, usize)> = Vec::new();
     let mut open = false;
     for (r, h) in held.iter().enumerate() {
