@@ -34,8 +34,9 @@
 //! 5. **Verify** (`verify`): a finding is physics only when the data say so. With the
 //!    other findings in place, each must beat the generic empirical correction of as
 //!    many parameters in its place on the held-out rows (where it leaves only noise,
-//!    a correction also linear in the tip position, unless the effect is itself such
-//!    a map: a sensor offset along the tip that mimics a tracker's scale fails), and its
+//!    a correction also in the stretches and shears of the tip position, unless the
+//!    effect is itself a map of the tip position: a sensor offset along the tip that
+//!    mimics a tracker's scale fails), and its
 //!    parameters must fit better constant than proportional to a feature of the rows
 //!    (a feed offset where the feed gain is wrong fails). Findings that fail are taken
 //!    out and the rest refitted, until all pass.

@@ -451,10 +451,10 @@ fn removed_note(ch: &verify::Checked) -> String {
             heldout_rms_mm,
             tip: true,
         }) => format!(
-            "{REMOVED}a generic empirical correction of as many parameters, linear in the \
-             joints, time and tip position, in its place, explains the data as well \
-             ({heldout_rms_mm:.3} mm held out): the data cannot tell it from an error \
-             outside the vocabulary such as a tracker's scale error"
+            "{REMOVED}a generic empirical correction of as many parameters, in the \
+             joints, time and the stretches and shears of the tip position, in its place, \
+             explains the data as well ({heldout_rms_mm:.3} mm held out): the data cannot \
+             tell it from an error outside the vocabulary such as a tracker's scale error"
         ),
         Some(verify::Failure::Varying {
             feature,

@@ -16,11 +16,12 @@
 //!    generic term cannot, and something else that is left (a drift) neither saves a
 //!    proxy nor sinks a true effect. Where `M` leaves nothing but noise on the held-out
 //!    rows (`h <= NOISE_TOLERANCE sigma_n`, then `K = 0`), the generic correction in
-//!    `c`'s place may also be linear in the modelled tip position (the empirical
-//!    term's full basis): an error linear in the tip position is what a tracker's
-//!    scale or calibration error makes, and an effect that reaches the noise through
-//!    the tip's pose (a sensor offset along the tip, which turns with it) can mimic
-//!    one. `c` must then beat that correction of `k` terms by the same margin and,
+//!    `c`'s place may also hold the linear maps of the modelled tip position that no
+//!    rigid motion makes ([`non_rigid`]: stretches and symmetric shears; rotations
+//!    and translations are the registration's, in the vocabulary): what a tracker's
+//!    scale or calibration error makes, and what an effect that reaches the noise
+//!    through the tip's pose (a sensor offset along the tip, which turns with it) can
+//!    mimic. `c` must then beat that correction of `k` terms by the same margin and,
 //!    where that correction too leaves only noise, beyond chance ([`clearly_lower`]: a
 //!    paired test of the held-out squared errors over blocks of consecutive rows).
 //!    An effect whose own form is a map of the tip position ([`affine_in_tip`]: every
@@ -178,10 +179,11 @@ impl<'a> Context<'a> {
     }
 
     /// What `e` leaves after the best `k`-term generic correction in the joints, time
-    /// and the modelled tip position (the full basis of the empirical term), every row.
+    /// and the non-rigid linear maps of the modelled tip position, every row.
     fn empirical_with_tip(&self, e_row: &[RowError], k: usize) -> Vec<RowError> {
         let e = &positions(e_row);
-        let fields = Basis::new(self.rec, &tips(self.rec, e_row), &self.fit).fields();
+        let mut fields = self.yardstick.clone();
+        fields.extend(non_rigid(&tips(self.rec, e_row), &self.fit));
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         let terms = empirical::pursue(&fields, e, &w, k);
         with_angles(&empirical::subtract(&fields, &terms, e), e_row)
@@ -424,6 +426,64 @@ pub(crate) fn clearly_lower(a: &[RowError], b: &[RowError], held: &[bool]) -> bo
         * g as f64
         / (g - 1) as f64;
     mean > Z975 * var.sqrt() / rows as f64
+}
+
+/// The linear maps of the tip position `p` that no rigid motion makes, as fields over
+/// the rows (each coordinate centred and scaled on the `fit` rows, `u`): the three
+/// stretches along an axis (`u_a` on axis `a`) and the three symmetric shears (`u_b` on
+/// `a` and `u_a` on `b`). A tracker's scale or calibration error is a sum of them; a
+/// rotation (antisymmetric) or a translation, a registration's, is not: that belongs to
+/// the vocabulary.
+fn non_rigid(p: &[[f64; 3]], fit: &[bool]) -> Vec<Field> {
+    let n = fit.iter().filter(|f| **f).count().max(1) as f64;
+    let u: Vec<[f64; 3]> = {
+        let mut centre = [0.0; 3];
+        let mut spread = [0.0; 3];
+        for a in 0..3 {
+            centre[a] = p
+                .iter()
+                .zip(fit)
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| v[a])
+                .sum::<f64>()
+                / n;
+            let var = p
+                .iter()
+                .zip(fit)
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| (v[a] - centre[a]).powi(2))
+                .sum::<f64>()
+                / n;
+            spread[a] = if var > 0.0 { var.sqrt() } else { 1.0 };
+        }
+        p.iter()
+            .map(|v| [0, 1, 2].map(|a| (v[a] - centre[a]) / spread[a]))
+            .collect()
+    };
+    let mut fields: Vec<Field> = (0..3)
+        .map(|a| {
+            u.iter()
+                .map(|v| {
+                    let mut f = [0.0; 3];
+                    f[a] = v[a];
+                    f
+                })
+                .collect()
+        })
+        .collect();
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        fields.push(
+            u.iter()
+                .map(|v| {
+                    let mut f = [0.0; 3];
+                    f[a] = v[b];
+                    f[b] = v[a];
+                    f
+                })
+                .collect(),
+        );
+    }
+    fields
 }
 
 /// Share of a parameter direction's squared size an affine map of the tip position
