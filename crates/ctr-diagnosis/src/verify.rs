@@ -655,6 +655,86 @@ mod tests {
             .is_empty());
     }
 
+    /// Tips spread over a box, as a workspace's.
+    fn box_tips() -> Vec<[f64; 3]> {
+        (0..200)
+            .map(|i| {
+                let f = f64::from(i);
+                [
+                    20.0 * (0.37 * f).sin(),
+                    15.0 * (0.23 * f).cos(),
+                    100.0 + 30.0 * (0.11 * f).sin(),
+                ]
+            })
+            .collect()
+    }
+
+    /// Squared error left by the best `k` of `fields` fitted to `e`, as a share.
+    fn left_share(fields: &[Field], e: &[[f64; 3]], k: usize) -> f64 {
+        let w = vec![1.0; e.len()];
+        let terms = empirical::pursue(fields, e, &w, k);
+        let left = empirical::subtract(fields, &terms, e);
+        let sq = |v: &[[f64; 3]]| v.iter().flatten().map(|x| x * x).sum::<f64>();
+        sq(&left) / sq(e)
+    }
+
+    #[test]
+    fn the_non_rigid_maps_take_a_scale_error_not_a_rotation() {
+        let p = box_tips();
+        let fit = vec![true; p.len()];
+        let fields = non_rigid(&p, &fit);
+        let mean: Vec<f64> = (0..3)
+            .map(|a| p.iter().map(|v| v[a]).sum::<f64>() / p.len() as f64)
+            .collect();
+        // a tracker's scale error about the workspace's centre: all of it
+        let scale: Vec<[f64; 3]> = p
+            .iter()
+            .map(|v| {
+                [
+                    0.01 * (v[0] - mean[0]),
+                    -0.008 * (v[1] - mean[1]),
+                    0.006 * (v[2] - mean[2]),
+                ]
+            })
+            .collect();
+        assert!(left_share(&fields, &scale, 3) < 1e-20);
+        // a rotation of 2 deg about z (a registration's): half of it stays, whatever
+        // the terms
+        let w = 2f64.to_radians();
+        let rotation: Vec<[f64; 3]> = p
+            .iter()
+            .map(|v| [-w * (v[1] - mean[1]), w * (v[0] - mean[0]), 0.0])
+            .collect();
+        assert!(left_share(&fields, &rotation, 6) > 0.3);
+        // a registration's directions are affine in the tip; a direction that turns with
+        // a joint is not
+        let translation: Vec<[f64; 3]> = p.iter().map(|_| [1.0, 0.0, 0.0]).collect();
+        assert!(affine_in_tip(&[rotation.clone(), translation], &p));
+        let turning: Vec<[f64; 3]> = (0..p.len())
+            .map(|i| [(0.5 * i as f64).cos(), (0.5 * i as f64).sin(), 0.0])
+            .collect();
+        assert!(!affine_in_tip(&[rotation, turning], &p));
+    }
+
+    #[test]
+    fn clearly_lower_needs_more_than_chance() {
+        let mut rng = ctr_analysis::rng::Rng::new(3);
+        let noise: Vec<RowError> = (0..400)
+            .map(|_| [0, 1, 2, 3, 4, 5].map(|a| if a < 3 { 0.2 * rng.normal() } else { 0.0 }))
+            .collect();
+        let held: Vec<bool> = (0..400).map(|r| (r / 20) % 4 == 3).collect();
+        let shifted = |d: f64| -> Vec<RowError> {
+            noise
+                .iter()
+                .map(|v| [v[0] + d, v[1], v[2], 0.0, 0.0, 0.0])
+                .collect()
+        };
+        // the same errors: not lower; a clear shift on top: lower
+        assert!(!clearly_lower(&noise, &noise, &held));
+        assert!(clearly_lower(&noise, &shifted(0.3), &held));
+        assert!(!clearly_lower(&shifted(0.3), &noise, &held));
+    }
+
     #[test]
     fn a_real_latency_passes_the_identification_check() {
         let world = with_latency(0.4);
