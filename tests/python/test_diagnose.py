@@ -282,7 +282,8 @@ def test_report_attributes_are_the_contract_fields(report):
     f = report.findings[0]
     assert set(f) == {"effect", "explanation", "where", "parameters", "rms_mm_before",
                       "rms_mm_after", "heldout_rms_mm_before", "heldout_rms_mm_after",
-                      "empirical_heldout_rms_mm", "ci95"}
+                      "empirical_heldout_rms_mm", "ci95", "equally_explained_by"}
+    assert f["equally_explained_by"] == []
     # plain Python values, fresh on every access
     assert type(report.final["rms_mm"]) is float and type(report.failed_rows) is int
     report.findings.clear()

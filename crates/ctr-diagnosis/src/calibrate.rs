@@ -129,6 +129,7 @@ pub fn calibrate(
             // the user named these effects: no search, so no check against the generic
             empirical_heldout_rms_mm: f64::NAN,
             ci95: serde_json::Value::Null,
+            equally_explained_by: Vec::new(),
         })
         .collect();
     Ok(start.finish(

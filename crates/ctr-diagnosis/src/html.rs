@@ -289,7 +289,28 @@ fn findings(h: &mut String, r: &Value) {
             h.push_str("<tr><th colspan=\"4\">identified combinations</th></tr>\n");
             identified.iter().for_each(|p| interval_row(h, p));
         }
-        h.push_str("</table>\n</section>\n");
+        h.push_str("</table>\n");
+        let equally: Vec<String> = array(&f["equally_explained_by"])
+            .iter()
+            .map(|a| {
+                format!(
+                    "<code>{}</code> ({} mm held out)",
+                    text(&a["effect"]),
+                    mm(&a["heldout_rms_mm"])
+                )
+            })
+            .collect();
+        if !equally.is_empty() {
+            let _ = writeln!(
+                h,
+                "<p class=\"equally\">Equally: {} explain{} this residual as well; the data \
+                 do not tell them apart (this one is named only because the search took it \
+                 first).</p>",
+                equally.join(", "),
+                if equally.len() == 1 { "s" } else { "" }
+            );
+        }
+        h.push_str("</section>\n");
     }
     for t in array(&r["tried"]) {
         if let Some(why) = t["note"].as_str().and_then(|n| n.strip_prefix(REMOVED)) {

@@ -33,7 +33,10 @@
 //!    found are then refitted together. It stops when no candidate passes.
 //! 5. **Verify** (`verify`): a finding is physics only when the data say so. With the
 //!    other findings in place, each must beat the generic empirical correction of as
-//!    many parameters in its place on the held-out rows (or leave only noise), and its
+//!    many parameters in its place on the held-out rows (where it leaves only noise,
+//!    a correction also in the stretches and shears of the tip position, unless the
+//!    effect is itself a map of the tip position: a sensor offset along the tip that
+//!    mimics a tracker's scale fails), and its
 //!    parameters must fit better constant than proportional to a feature of the rows
 //!    (a feed offset where the feed gain is wrong fails). Findings that fail are taken
 //!    out and the rest refitted, until all pass.
@@ -117,8 +120,8 @@ pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::{Checks, Options};
 pub use plots::Plot;
 pub use report::{
-    fitted_file, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval, Figures,
-    Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
+    fitted_file, Alternative, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
+    Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
 pub use split::{split, Holdout};

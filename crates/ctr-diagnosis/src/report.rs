@@ -79,6 +79,21 @@ pub struct Finding {
     /// `identified`, the combinations the data pin where the parameters alone are not
     /// (see `uncertainty_method`).
     pub ci95: serde_json::Value,
+    /// Other effects that explained the same residual as well when this one was added
+    /// (held out within [`MIN_HELDOUT_GAIN`](crate::MIN_HELDOUT_GAIN) of it and not
+    /// lower beyond chance): the data do not tell them from this one, which the search
+    /// named only because it came first. Empty when the choice was clear.
+    pub equally_explained_by: Vec<Alternative>,
+}
+
+/// An effect that explains a finding's residual as well as the finding does.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Alternative {
+    /// The contract's id.
+    pub effect: EffectId,
+    /// Held-out RMS with it in the finding's place (fitted with the findings before),
+    /// mm.
+    pub heldout_rms_mm: f64,
 }
 
 /// Two parameters the data hardly tell apart.
@@ -334,6 +349,27 @@ impl Report {
             let ci = intervals(&f.parameters, &f.ci95);
             if !ci.is_empty() {
                 s += &format!("  95 % intervals: {ci}\n");
+            }
+            if !f.equally_explained_by.is_empty() {
+                let others: Vec<String> = f
+                    .equally_explained_by
+                    .iter()
+                    .map(|a| {
+                        format!(
+                            "{} ({:.3} mm held out)",
+                            a.effect.as_str(),
+                            a.heldout_rms_mm
+                        )
+                    })
+                    .collect();
+                s += &format!(
+                    "  equally: {} explain{} this residual as well as {}: the data do not \
+                     tell them apart (it is named only because the search took it first); \
+                     a run that moves them differently, or knowledge of the rig, decides\n",
+                    others.join(", "),
+                    if others.len() == 1 { "s" } else { "" },
+                    f.effect.as_str(),
+                );
             }
         }
         for line in &self.identifiability {

@@ -10,7 +10,7 @@ use crate::fit::{Problem, MAX_FIT_ITERATIONS};
 use crate::locate;
 use crate::options::Options;
 use crate::prose::{explain, parameters};
-use crate::report::{Diagnosis, Figures, Finding, Trial, REMOVED};
+use crate::report::{Alternative, Diagnosis, Figures, Finding, Trial, REMOVED};
 use crate::residual::{components, errors, figures, positions, tips, RowError};
 use crate::screen::{Screen, Screened, FULL_FITS};
 use crate::start::{sample_period, Start};
@@ -129,6 +129,8 @@ pub fn diagnose(
         let held_x: Vec<f64> = accepted.iter().flat_map(|b| b.read(&current)).collect();
         let with = |c: EffectId| -> Vec<EffectId> { accepted.iter().copied().chain([c]).collect() };
         let mut verdicts: Vec<Trial> = Vec::new();
+        // every candidate both tests accept, for what explains the residual equally
+        let mut passing: Vec<(EffectId, f64, Vec<RowError>)> = Vec::new();
         let mut on_screen: Vec<(&Screened, String)> = Vec::new();
         let mut full_fits = 0;
         for r in &ranked {
@@ -191,6 +193,9 @@ pub fn diagnose(
                 added: false,
                 note,
             });
+            if passes {
+                passing.push((c, fig.heldout_rms_mm, e.clone()));
+            }
             if passes
                 && best
                     .as_ref()
@@ -244,9 +249,14 @@ pub fn diagnose(
             tried.extend(round_trials);
             break;
         };
+        let equally = equally(c, fig.heldout_rms_mm, &e, &passing, held);
         for t in &mut round_trials {
             if t.effect == c {
                 t.added = true;
+            } else if equally.iter().any(|a| a.effect == t.effect) {
+                t.note = "not added: it explains the same residual as well as the candidate \
+                          added (the data do not tell them apart)"
+                    .into();
             } else if t.note.is_empty() {
                 t.note = "another candidate explained more".into();
             }
@@ -293,6 +303,7 @@ pub fn diagnose(
             heldout_rms_mm_after: fig.heldout_rms_mm,
             empirical_heldout_rms_mm: f64::NAN,
             ci95: serde_json::Value::Null,
+            equally_explained_by: equally,
         });
         // the earlier findings' parameters moved in the joint refit
         for f in &mut findings {
@@ -369,6 +380,11 @@ pub fn diagnose(
         }
         current = m;
     }
+    // an alternative that is itself a finding is no alternative
+    for f in &mut findings {
+        f.equally_explained_by
+            .retain(|a| !accepted.contains(&a.effect));
+    }
     let final_pred = predict_with_margins(&current, rec, all_runs)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     Ok(start.finish(
@@ -396,12 +412,49 @@ pub fn diagnose(
     ))
 }
 
+/// The candidates of `passing` (effect, held-out RMS, errors) other than the one
+/// added, `added` (held-out RMS `h`, errors `e`), that explain the residual as well: held
+/// out within [`MIN_HELDOUT_GAIN`] of it (the gain the search asks of any effect) and not
+/// higher beyond chance (`verify::clearly_lower`).
+fn equally(
+    added: EffectId,
+    h: f64,
+    e: &[RowError],
+    passing: &[(EffectId, f64, Vec<RowError>)],
+    held: &[bool],
+) -> Vec<Alternative> {
+    passing
+        .iter()
+        .filter(|(c, h_c, e_c)| {
+            *c != added
+                && h_c * (1.0 - MIN_HELDOUT_GAIN) <= h
+                && !verify::clearly_lower(e, e_c, held)
+        })
+        .map(|(c, h_c, _)| Alternative {
+            effect: *c,
+            heldout_rms_mm: *h_c,
+        })
+        .collect()
+}
+
 /// Why a finding was taken out after the search, for its trial.
 fn removed_note(ch: &verify::Checked) -> String {
     match &ch.failure {
-        Some(verify::Failure::Empirical { heldout_rms_mm }) => format!(
+        Some(verify::Failure::Empirical {
+            heldout_rms_mm,
+            tip: false,
+        }) => format!(
             "{REMOVED}a generic empirical correction of as many parameters, \
              in its place, does as well on held-out rows ({heldout_rms_mm:.3} mm)"
+        ),
+        Some(verify::Failure::Empirical {
+            heldout_rms_mm,
+            tip: true,
+        }) => format!(
+            "{REMOVED}a generic empirical correction of as many parameters, in the \
+             joints, time and the stretches and shears of the tip position, in its place, \
+             explains the data as well ({heldout_rms_mm:.3} mm held out): the data cannot \
+             tell it from an error outside the vocabulary such as a tracker's scale error"
         ),
         Some(verify::Failure::Varying {
             feature,

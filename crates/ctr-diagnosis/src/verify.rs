@@ -15,8 +15,18 @@
 //!    `h_K < (1 - MIN_GAIN_OVER_EMPIRICAL) h_emp`. So `c` must explain something a
 //!    generic term cannot, and something else that is left (a drift) neither saves a
 //!    proxy nor sinks a true effect. Where `M` leaves nothing but noise on the held-out
-//!    rows (`h <= NOISE_TOLERANCE sigma_n`, then `K = 0`) the check passes: both then
-//!    explain everything, and the physics is the hypothesis.
+//!    rows (`h <= NOISE_TOLERANCE sigma_n`, then `K = 0`), the generic correction in
+//!    `c`'s place may also hold the linear maps of the modelled tip position that no
+//!    rigid motion makes ([`non_rigid`]: stretches and symmetric shears; rotations
+//!    and translations are the registration's, in the vocabulary): what a tracker's
+//!    scale or calibration error makes, and what an effect that reaches the noise
+//!    through the tip's pose (a sensor offset along the tip, which turns with it) can
+//!    mimic. `c` must then beat that correction of `k` terms by the same margin and,
+//!    where that correction too leaves only noise, beyond chance ([`clearly_lower`]: a
+//!    paired test of the held-out squared errors over blocks of consecutive rows).
+//!    An effect whose own form is a map of the tip position ([`affine_in_tip`]: every
+//!    parameter direction affine in the tip position, as a registration's) is not
+//!    measured against itself: it passes at the noise, the physics the hypothesis.
 //! 2. **Its parameters are constant, not proportional to something.** An effect
 //!    claims a fixed set of parameters: its error is `J_c(q) dx` with `J_c` the
 //!    derivative of the tip with respect to its parameters and `dx` constant over the
@@ -50,7 +60,7 @@ use crate::hybrid;
 use crate::noise::NOISE_TOLERANCE;
 use crate::options::Checks;
 use crate::quantiles::{chi2_95, Z975};
-use crate::residual::{errors, figures, positions, tips, with_angles, RowError};
+use crate::residual::{errors, figures, positions, size2, tips, with_angles, RowError};
 use crate::uncertainty::{self, Assessment};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
@@ -94,6 +104,9 @@ pub(crate) enum Failure {
     Empirical {
         /// Its held-out RMS, mm.
         heldout_rms_mm: f64,
+        /// Whether the correction was also linear in the tip position (the yardstick
+        /// where the model leaves only noise).
+        tip: bool,
     },
     /// The effect's parameters are better proportional to a feature of the rows.
     Varying {
@@ -165,6 +178,17 @@ impl<'a> Context<'a> {
         figures(&with_angles(&left, e_row), self.held).heldout_rms_mm
     }
 
+    /// What `e` leaves after the best `k`-term generic correction in the joints, time
+    /// and the non-rigid linear maps of the modelled tip position, every row.
+    fn empirical_with_tip(&self, e_row: &[RowError], k: usize) -> Vec<RowError> {
+        let e = &positions(e_row);
+        let mut fields = self.yardstick.clone();
+        fields.extend(non_rigid(&tips(self.rec, e_row), &self.fit));
+        let w = empirical::weights(e, &self.fit, self.huber_mm);
+        let terms = empirical::pursue(&fields, e, &w, k);
+        with_angles(&empirical::subtract(&fields, &terms, e), e_row)
+    }
+
     /// The size of the generic correction (joints and time) that cross-validation on
     /// the fit rows gives `e`: what is left that a generic term takes, whatever it is.
     fn generic_size(&self, e_row: &[RowError]) -> usize {
@@ -200,14 +224,38 @@ impl<'a> Context<'a> {
             } else {
                 self.empirical_heldout(e, size)
             };
-            let h_emp = self.empirical_heldout(&e_without, size + k);
+            // where `M` leaves only noise, the correction in `c`'s place may also be
+            // linear in the tip position (what a tracker's scale or calibration error
+            // makes, and what an effect that reaches the noise through the tip's pose,
+            // a sensor offset along the tip, can mimic), unless `c`'s own form is such
+            // a map (a registration): it is not measured against itself
+            let directions = if at_noise {
+                self.directions(m, c)
+            } else {
+                None
+            };
+            let tip = directions
+                .as_ref()
+                .is_some_and(|d| !affine_in_tip(d, &tips(self.rec, e)));
+            let (h_emp, left_emp) = if tip {
+                let left = self.empirical_with_tip(&e_without, k);
+                (figures(&left, self.held).heldout_rms_mm, Some(left))
+            } else {
+                (self.empirical_heldout(&e_without, size + k), None)
+            };
             out.empirical_heldout_rms_mm = h_emp;
-            if self.checks.beats_generic
-                && !at_noise
-                && h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp
-            {
+            // where the generic correction too leaves only noise, both explain the
+            // data and clearly also means beyond chance
+            let both_at_noise = h_emp <= NOISE_TOLERANCE * self.noise_rms_mm;
+            let beaten = h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp
+                || (both_at_noise
+                    && left_emp
+                        .as_ref()
+                        .is_some_and(|l| !clearly_lower(e, l, self.held)));
+            if self.checks.beats_generic && (!at_noise || tip) && beaten {
                 out.failure = Some(Failure::Empirical {
                     heldout_rms_mm: h_emp,
+                    tip,
                 });
                 return out;
             }
@@ -270,17 +318,9 @@ impl<'a> Context<'a> {
         (failures, Some(a))
     }
 
-    /// With `c` taken out (its error `e`): the held-out RMS of the linear fit of the
-    /// `k` constant parameter directions `J_c,j`, and of the best `k` proportional
-    /// fields `J_c,j f`, with the feature chosen first.
-    fn proportional(
-        &self,
-        m: &ModelSpec,
-        e_row: &[RowError],
-        c: EffectId,
-    ) -> Option<(String, f64, f64)> {
-        // fitted to the positions (the tip directions `J_c`); the angular errors stay
-        let e = &positions(e_row);
+    /// The tip directions of `c`'s parameters in `m` at every row: column `j` of the
+    /// Jacobian of the tip positions with respect to its parameters, `J_c,j(q)`.
+    fn directions(&self, m: &ModelSpec, c: EffectId) -> Option<Vec<Field>> {
         let rows = self.rec.rows.len();
         let problem = Problem {
             base: m.clone(),
@@ -294,12 +334,32 @@ impl<'a> Context<'a> {
         let x = c.read(m);
         let p0 = problem.predictions(&x)?;
         let jac = problem.jacobian(&x, &p0)?;
-        let k = jac.ncols();
-        let direction =
-            |j: usize, r: usize| [jac[(3 * r, j)], jac[(3 * r + 1, j)], jac[(3 * r + 2, j)]];
-        let constant: Vec<Field> = (0..k)
-            .map(|j| (0..rows).map(|r| direction(j, r)).collect())
-            .collect();
+        Some(
+            (0..jac.ncols())
+                .map(|j| {
+                    (0..rows)
+                        .map(|r| [jac[(3 * r, j)], jac[(3 * r + 1, j)], jac[(3 * r + 2, j)]])
+                        .collect()
+                })
+                .collect(),
+        )
+    }
+
+    /// With `c` taken out (its error `e`): the held-out RMS of the linear fit of the
+    /// `k` constant parameter directions `J_c,j`, and of the best `k` proportional
+    /// fields `J_c,j f`, with the feature chosen first.
+    fn proportional(
+        &self,
+        m: &ModelSpec,
+        e_row: &[RowError],
+        c: EffectId,
+    ) -> Option<(String, f64, f64)> {
+        // fitted to the positions (the tip directions `J_c`); the angular errors stay
+        let e = &positions(e_row);
+        let rows = self.rec.rows.len();
+        let constant = self.directions(m, c)?;
+        let k = constant.len();
+        let direction = |j: usize, r: usize| constant[j][r];
         let basis = Basis::raw(self.rec, &tips(self.rec, e_row));
         let mut fields: Vec<Field> = Vec::new();
         let mut names = Vec::new();
@@ -324,6 +384,134 @@ impl<'a> Context<'a> {
         let first = terms.first().map(|&(i, _)| names[i].clone())?;
         Some((first, h_const, heldout(&fields, &terms)))
     }
+}
+
+/// Held-out rows of one block of the paired comparison of [`clearly_lower`]
+/// (consecutive rows share their errors; the cross-validation's blocks are as long).
+const PAIRED_BLOCK_ROWS: usize = 10;
+
+/// Whether the held-out squared errors of `a` are lower than those of `b` beyond
+/// chance: the mean paired difference `|b|^2 - |a|^2` over the held-out rows exceeds
+/// [`Z975`] times its standard error, taken over blocks of up to
+/// [`PAIRED_BLOCK_ROWS`] consecutive held-out rows (so errors correlated along a run
+/// count once per block).
+pub(crate) fn clearly_lower(a: &[RowError], b: &[RowError], held: &[bool]) -> bool {
+    let mut blocks: Vec<(f64, usize)> = Vec::new();
+    let mut open = false;
+    for (r, h) in held.iter().enumerate() {
+        if !h {
+            open = false;
+            continue;
+        }
+        let d = size2(&b[r]) - size2(&a[r]);
+        match blocks.last_mut() {
+            Some((sum, n)) if open && *n < PAIRED_BLOCK_ROWS => {
+                *sum += d;
+                *n += 1;
+            }
+            _ => blocks.push((d, 1)),
+        }
+        open = true;
+    }
+    let g = blocks.len();
+    let rows: usize = blocks.iter().map(|b| b.1).sum();
+    if g < 2 {
+        return false;
+    }
+    let mean = blocks.iter().map(|b| b.0).sum::<f64>() / rows as f64;
+    let var = blocks
+        .iter()
+        .map(|&(sum, n)| (sum - n as f64 * mean).powi(2))
+        .sum::<f64>()
+        * g as f64
+        / (g - 1) as f64;
+    mean > Z975 * var.sqrt() / rows as f64
+}
+
+/// The linear maps of the tip position `p` that no rigid motion makes, as fields over
+/// the rows (each coordinate centred and scaled on the `fit` rows, `u`): the three
+/// stretches along an axis (`u_a` on axis `a`) and the three symmetric shears (`u_b` on
+/// `a` and `u_a` on `b`). A tracker's scale or calibration error is a sum of them; a
+/// rotation (antisymmetric) or a translation, a registration's, is not: that belongs to
+/// the vocabulary.
+fn non_rigid(p: &[[f64; 3]], fit: &[bool]) -> Vec<Field> {
+    let n = fit.iter().filter(|f| **f).count().max(1) as f64;
+    let u: Vec<[f64; 3]> = {
+        let mut centre = [0.0; 3];
+        let mut spread = [0.0; 3];
+        for a in 0..3 {
+            centre[a] = p
+                .iter()
+                .zip(fit)
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| v[a])
+                .sum::<f64>()
+                / n;
+            let var = p
+                .iter()
+                .zip(fit)
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| (v[a] - centre[a]).powi(2))
+                .sum::<f64>()
+                / n;
+            spread[a] = if var > 0.0 { var.sqrt() } else { 1.0 };
+        }
+        p.iter()
+            .map(|v| [0, 1, 2].map(|a| (v[a] - centre[a]) / spread[a]))
+            .collect()
+    };
+    let mut fields: Vec<Field> = (0..3)
+        .map(|a| {
+            u.iter()
+                .map(|v| {
+                    let mut f = [0.0; 3];
+                    f[a] = v[a];
+                    f
+                })
+                .collect()
+        })
+        .collect();
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        fields.push(
+            u.iter()
+                .map(|v| {
+                    let mut f = [0.0; 3];
+                    f[a] = v[b];
+                    f[b] = v[a];
+                    f
+                })
+                .collect(),
+        );
+    }
+    fields
+}
+
+/// Share of a parameter direction's squared size an affine map of the tip position
+/// may leave for the effect to count as itself such a map.
+const AFFINE_LEFT: f64 = 1e-2;
+
+/// Whether every parameter direction `J_c,j` of an effect (over the rows, modelled tips
+/// `tips`) is, axis by axis, an affine function of the tip position to within
+/// [`AFFINE_LEFT`] of its squared size: a registration's are (a translation and a
+/// rotation of the tip positions), a sensor offset's, which turn with the tip, are not.
+/// Directions that move no tip count as affine.
+fn affine_in_tip(directions: &[Field], tips: &[[f64; 3]]) -> bool {
+    let rows = tips.len();
+    let a = DMatrix::from_fn(rows, 4, |r, j| if j == 0 { 1.0 } else { tips[r][j - 1] });
+    let svd = a.clone().svd(true, true);
+    directions.iter().all(|d| {
+        let (mut total, mut left) = (0.0, 0.0);
+        for axis in 0..3 {
+            let b = DVector::from_fn(rows, |r, _| d[r][axis]);
+            let Ok(coef) = svd.solve(&b, 1e-12) else {
+                return false;
+            };
+            let res = &b - &a * coef;
+            total += b.norm_squared();
+            left += res.norm_squared();
+        }
+        left <= AFFINE_LEFT * total
+    })
 }
 
 /// The Wald test of `c`'s parameters against the nominal: `d^T Sigma_cc^+ d` (`d`
@@ -465,6 +653,86 @@ mod tests {
             .identified(&with_latency(0.01), &user(), &[EffectId::Latency], &rows)
             .0
             .is_empty());
+    }
+
+    /// Tips spread over a box, as a workspace's.
+    fn box_tips() -> Vec<[f64; 3]> {
+        (0..200)
+            .map(|i| {
+                let f = f64::from(i);
+                [
+                    20.0 * (0.37 * f).sin(),
+                    15.0 * (0.23 * f).cos(),
+                    100.0 + 30.0 * (0.11 * f).sin(),
+                ]
+            })
+            .collect()
+    }
+
+    /// Squared error left by the best `k` of `fields` fitted to `e`, as a share.
+    fn left_share(fields: &[Field], e: &[[f64; 3]], k: usize) -> f64 {
+        let w = vec![1.0; e.len()];
+        let terms = empirical::pursue(fields, e, &w, k);
+        let left = empirical::subtract(fields, &terms, e);
+        let sq = |v: &[[f64; 3]]| v.iter().flatten().map(|x| x * x).sum::<f64>();
+        sq(&left) / sq(e)
+    }
+
+    #[test]
+    fn the_non_rigid_maps_take_a_scale_error_not_a_rotation() {
+        let p = box_tips();
+        let fit = vec![true; p.len()];
+        let fields = non_rigid(&p, &fit);
+        let mean: Vec<f64> = (0..3)
+            .map(|a| p.iter().map(|v| v[a]).sum::<f64>() / p.len() as f64)
+            .collect();
+        // a tracker's scale error about the workspace's centre: all of it
+        let scale: Vec<[f64; 3]> = p
+            .iter()
+            .map(|v| {
+                [
+                    0.01 * (v[0] - mean[0]),
+                    -0.008 * (v[1] - mean[1]),
+                    0.006 * (v[2] - mean[2]),
+                ]
+            })
+            .collect();
+        assert!(left_share(&fields, &scale, 3) < 1e-20);
+        // a rotation of 2 deg about z (a registration's): half of it stays, whatever
+        // the terms
+        let w = 2f64.to_radians();
+        let rotation: Vec<[f64; 3]> = p
+            .iter()
+            .map(|v| [-w * (v[1] - mean[1]), w * (v[0] - mean[0]), 0.0])
+            .collect();
+        assert!(left_share(&fields, &rotation, 6) > 0.3);
+        // a registration's directions are affine in the tip; a direction that turns with
+        // a joint is not
+        let translation: Vec<[f64; 3]> = p.iter().map(|_| [1.0, 0.0, 0.0]).collect();
+        assert!(affine_in_tip(&[rotation.clone(), translation], &p));
+        let turning: Vec<[f64; 3]> = (0..p.len())
+            .map(|i| [(0.5 * i as f64).cos(), (0.5 * i as f64).sin(), 0.0])
+            .collect();
+        assert!(!affine_in_tip(&[rotation, turning], &p));
+    }
+
+    #[test]
+    fn clearly_lower_needs_more_than_chance() {
+        let mut rng = ctr_analysis::rng::Rng::new(3);
+        let noise: Vec<RowError> = (0..400)
+            .map(|_| [0, 1, 2, 3, 4, 5].map(|a| if a < 3 { 0.2 * rng.normal() } else { 0.0 }))
+            .collect();
+        let held: Vec<bool> = (0..400).map(|r| (r / 20) % 4 == 3).collect();
+        let shifted = |d: f64| -> Vec<RowError> {
+            noise
+                .iter()
+                .map(|v| [v[0] + d, v[1], v[2], 0.0, 0.0, 0.0])
+                .collect()
+        };
+        // the same errors: not lower; a clear shift on top: lower
+        assert!(!clearly_lower(&noise, &noise, &held));
+        assert!(clearly_lower(&noise, &shifted(0.3), &held));
+        assert!(!clearly_lower(&shifted(0.3), &noise, &held));
     }
 
     #[test]

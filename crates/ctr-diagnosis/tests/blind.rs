@@ -508,15 +508,25 @@ const OUTSIDE_SEEDS: u64 = 12;
 /// the seed. Every case must name exactly the in-vocabulary effect (or nothing), say
 /// `explained: false` and flag at most 2 % of the rows as outliers.
 ///
-/// Open (issue 14): 7 of 12 pass today. Two tracker-scale cases are taken for a
-/// sensor offset along the tip (and called explained), and three clearances beside a
-/// drift, a runout or a feed gain are missed. Run it with `--include-ignored` (about 4
-/// minutes in release).
+/// Open (issue 14): 9 of 12 pass. The two tracker-scale cases that a sensor offset
+/// along the tip took (and called explained) now fail that offset in `verify` (at the
+/// noise it must beat a generic correction with the tip position's stretches and
+/// shears), and say `explained: false`. Three clearances of 2.5 deg beside a larger
+/// error outside the vocabulary (a drift, seed 0; a gear runout, seed 10; a feed gain,
+/// seed 11) are still missed: the search finds each, but once the proxies of the other
+/// error are removed the clearance is refitted alone, soaks up part of that error, and
+/// fails a check (proportional to a feed rather than constant; no better than a generic
+/// correction). The report then names nothing, which is not false, only incomplete.
+/// Run it with `--include-ignored` (about 3 minutes in release); `CTR_SEEDS=0,10`
+/// runs only those seeds.
 #[test]
-#[ignore = "open: 5 of 12 seeds fail (tracker scale read as sensor_offset; clearance missed beside other errors)"]
+#[ignore = "open: 3 of 12 seeds fail (a clearance beside a larger error outside the vocabulary is missed)"]
 fn effects_outside_the_vocabulary_over_seeds() {
     use ctr_analysis::rng::Rng;
     let mut failed = Vec::new();
+    let only: Option<Vec<u64>> = std::env::var("CTR_SEEDS")
+        .ok()
+        .map(|v| v.split(',').map(|s| s.parse().unwrap()).collect());
     for seed in 0..OUTSIDE_SEEDS {
         let mut rng = Rng::new(1000 + seed);
         let robot = ["liu2023", "nitinol2", "nitinol3"][rng.below(3)];
@@ -564,6 +574,9 @@ fn effects_outside_the_vocabulary_over_seeds() {
                     ))
                 }
             }
+        }
+        if only.as_ref().is_some_and(|o| !o.contains(&seed)) {
+            continue;
         }
         let name: &'static str = Box::leak(format!("outside_seed_{seed}").into_boxed_str());
         let case = Case::new(name, robot, 2000 + seed)

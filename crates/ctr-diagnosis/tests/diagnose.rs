@@ -154,3 +154,77 @@ fn dev_latency() {
 fn dev_registration() {
     check("dev-registration");
 }
+
+/// Where two effects explain the same residual equally, the report says so instead of
+/// naming one alone: on a one-tube robot turned about its own axis, a registration's
+/// rotation about that axis and the tube's rotation offset move the tip alike.
+#[test]
+fn equal_explanations_are_said() {
+    use ctr_diagnosis::synth::{record, CommandedRun, SynthSpec};
+    use ctr_formats::Registration;
+    let spec = RobotSpec::from_toml_str(
+        "[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\nlength_mm = 200.0\n\
+         curved_length_mm = 80.0\ncurvature_radius_mm = 100.0\nyoungs_modulus_mpa = 58000.0\n\
+         poisson_ratio = 0.33\n",
+        "one.toml",
+    )
+    .unwrap();
+    let user = ModelSpec::from_spec(&spec);
+    let mut world = user.clone();
+    world.effects.registration = Some(Registration::from_rotation_vector(
+        [0.0, 0.0, 4.0],
+        [0.0, 0.0, 0.0],
+    ));
+    let turn: Vec<Vec<f64>> = (0..240)
+        .map(|i| vec![120.0 + 10.0 * f64::from(i / 60), 6.0 * f64::from(i % 60)])
+        .collect();
+    let feed: Vec<Vec<f64>> = (0..160)
+        .map(|i| vec![100.0 + 1.0 * f64::from(i % 40), 90.0 * f64::from(i / 40)])
+        .collect();
+    let runs = [
+        CommandedRun {
+            label: "turn".into(),
+            joints: turn,
+        },
+        CommandedRun {
+            label: "feed".into(),
+            joints: feed,
+        },
+    ];
+    let synth = SynthSpec {
+        noise_sigma_mm: 0.2,
+        seed: 5,
+        ..SynthSpec::default()
+    };
+    let rec = record(&world, &runs, &synth).unwrap().recording;
+    let d = diagnose(&user, &rec, &Options::default()).unwrap();
+    let r = &d.report;
+    print_trials(r);
+    let summary = r.summary("one.csv");
+    eprintln!("{summary}");
+    // one finding, and the report says which other effect does as well: the world's
+    // registration or the rotation offset, whichever the search took first
+    assert_eq!(r.findings.len(), 1, "{summary}");
+    let f = &r.findings[0];
+    let mut named: Vec<&str> = std::iter::once(f.effect.as_str())
+        .chain(f.equally_explained_by.iter().map(|a| a.effect.as_str()))
+        .collect();
+    named.sort_unstable();
+    assert!(
+        named.contains(&"registration") && named.contains(&"joint_offset"),
+        "{named:?}"
+    );
+    assert!(summary.contains("  equally: "), "{summary}");
+    let json = serde_json::to_value(r).unwrap();
+    assert!(
+        json["findings"][0]["equally_explained_by"]
+            .as_array()
+            .is_some_and(|a| !a.is_empty()),
+        "{json}"
+    );
+    let page = ctr_diagnosis::Page::new(r, &rec, &spec, &d.fitted_spec(&spec))
+        .unwrap()
+        .to_html()
+        .unwrap();
+    assert!(page.contains("<p class=\"equally\">Equally: "));
+}

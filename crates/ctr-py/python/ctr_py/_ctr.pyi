@@ -415,6 +415,7 @@ Finding = TypedDict(
         "heldout_rms_mm_after": float,
         "empirical_heldout_rms_mm": Optional[float],
         "ci95": Any,
+        "equally_explained_by": List[Any],
     },
 )
 """One effect found (typing only: a dict at run time): its id, what the model leaves
@@ -426,7 +427,10 @@ torsion and for :func:`calibrate`), and ``ci95``: the 95 % intervals of ``parame
 (the same keys and shapes, each number replaced by ``[lo, hi]`` in its unit,
 ``[None, None]`` where the data set no bound), with ``identified``, a list of
 ``{"combination": str, "value": float, "ci95": [lo, hi]}``, where only a combination
-of the parameters is identified (the ratio of two tubes' stiffness factors)."""
+of the parameters is identified (the ratio of two tubes' stiffness factors), and
+``equally_explained_by``: a list of ``{"effect": EffectId, "heldout_rms_mm": float}``,
+the other effects that explained the same residual as well when it was added (the data
+do not tell them from it; empty when the choice was clear)."""
 
 class ExpectedInterval(TypedDict):
     """A parameter's 95 % interval now and expected after the suggested run (typing
