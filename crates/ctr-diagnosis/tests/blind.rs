@@ -19,7 +19,7 @@
 
 mod common;
 
-use common::{print_trials, robot, shared};
+use common::{print_trials, public_truth, robot, shared};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
 use ctr_core::Model;
@@ -748,31 +748,6 @@ impl Tally {
             self.add(format!("{name} {combination}"), tv, fit, lo, hi);
         }
     }
-}
-
-/// A public recording's truth (`world.effects` of its truth file, in the contract's
-/// names) in the report's form of `effect`, or `None` for an effect it does not name.
-fn public_truth(world: &serde_json::Value, effect: &str, n: usize) -> Option<serde_json::Value> {
-    use serde_json::json;
-    let e = world.get(effect)?;
-    Some(match effect {
-        "clearance" => json!({
-            "max_deflection_deg": vec![e["delta_max_deg"].clone(); n - 1],
-            "peak_deg": vec![e["phi0_deg"].clone(); n - 1],
-        }),
-        "friction" => json!({
-            "rotation_play_deg": vec![e["rotation_play_half_width_deg"].clone(); n - 1],
-            "feed_play_mm": vec![0.0; n],
-        }),
-        "registration" => {
-            let mut r = e.clone();
-            let a: Vec<f64> = serde_json::from_value(e["rotation_axis"].clone()).unwrap();
-            let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-            r["rotation_axis"] = json!(a.iter().map(|v| v / norm).collect::<Vec<_>>());
-            r
-        }
-        _ => e.clone(),
-    })
 }
 
 /// Over seeded recordings with realistic effects of the vocabulary (alone), and over

@@ -24,7 +24,7 @@ use ctr_analysis::rng::Rng;
 use ctr_analysis::simulate::predict;
 use ctr_diagnosis::{diagnose, Finding, Options};
 use ctr_formats::{Clearance, Effects, Friction, Gravity, Latency, Registration};
-use serde_json::{json, Value};
+use serde_json::Value;
 
 /// Fresh noise draws per public recording.
 const REPLICAS: u64 = 2;
@@ -76,29 +76,6 @@ fn truth_effects(world: &Value, n: usize) -> Effects {
         });
     }
     out
-}
-
-/// The truth of `effect` in the report's form (`parameters`).
-fn report_truth(world: &Value, effect: &str, n: usize) -> Option<Value> {
-    let e = world.get(effect)?;
-    Some(match effect {
-        "clearance" => json!({
-            "max_deflection_deg": vec![e["delta_max_deg"].clone(); n - 1],
-            "peak_deg": vec![e["phi0_deg"].clone(); n - 1],
-        }),
-        "friction" => json!({
-            "rotation_play_deg": vec![e["rotation_play_half_width_deg"].clone(); n - 1],
-            "feed_play_mm": vec![0.0; n],
-        }),
-        "registration" => {
-            let mut r = e.clone();
-            let a = v3(&e["rotation_axis"]);
-            let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-            r["rotation_axis"] = json!(a.map(|v| v / norm));
-            r
-        }
-        _ => e.clone(),
-    })
 }
 
 /// Numbers of `v` with their key paths.
@@ -209,7 +186,7 @@ fn intervals_hold_the_truth_on_replicas_of_the_public_recordings() {
             let d = diagnose(&user, &replay, &Options::default()).unwrap();
             let mut mine = Vec::new();
             for fd in &d.report.findings {
-                if let Some(t) = report_truth(world, fd.effect.as_str(), n) {
+                if let Some(t) = common::public_truth(world, fd.effect.as_str(), n) {
                     let (i, t) = tally(fd, &t, &mut mine);
                     inside += i;
                     total += t;
