@@ -19,10 +19,13 @@
 
 mod common;
 
+use common::coverage::Tally;
+use common::{public_ids, public_truth};
+
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
 use ctr_analysis::simulate::predict;
-use ctr_diagnosis::{diagnose, Finding, Options};
+use ctr_diagnosis::{diagnose, Options};
 use ctr_formats::{Clearance, Effects, Friction, Gravity, Latency, Registration};
 use serde_json::Value;
 
@@ -78,70 +81,15 @@ fn truth_effects(world: &Value, n: usize) -> Effects {
     out
 }
 
-/// Numbers of `v` with their key paths.
-fn numbers(v: &Value, path: &str, out: &mut Vec<(String, f64)>) {
-    match v {
-        Value::Number(x) => out.push((path.into(), x.as_f64().unwrap())),
-        Value::Array(a) => {
-            for (i, x) in a.iter().enumerate() {
-                numbers(x, &format!("{path}[{i}]"), out);
-            }
-        }
-        Value::Object(m) => {
-            for (k, x) in m {
-                numbers(x, &format!("{path}.{k}"), out);
-            }
-        }
-        _ => {}
-    }
-}
-
-/// How many of a finding's scalars hold the truth, of how many, and the misses.
-fn tally(f: &Finding, truth: &Value, misses: &mut Vec<String>) -> (usize, usize) {
-    let (mut t, mut ci) = (Vec::new(), Vec::new());
-    numbers(truth, "", &mut t);
-    numbers(&f.ci95, "", &mut ci);
-    let (mut inside, mut total) = (0, 0);
-    for (path, tv) in &t {
-        let end = |k: usize| {
-            ci.iter()
-                .find(|(p, _)| *p == format!("{path}[{k}]"))
-                .map(|v| v.1)
-        };
-        let (Some(lo), Some(hi)) = (end(0), end(1)) else {
-            continue;
-        };
-        total += 1;
-        if lo <= *tv && *tv <= hi {
-            inside += 1;
-        } else {
-            misses.push(format!(
-                "{}{path}: truth {tv:.4} ci [{lo:.4}, {hi:.4}]",
-                f.effect.as_str()
-            ));
-        }
-    }
-    (inside, total)
-}
-
 #[test]
 fn intervals_hold_the_truth_on_replicas_of_the_public_recordings() {
     let replicas = std::env::var("CTR_REPLICAS")
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(REPLICAS);
-    let mut ids: Vec<String> = std::fs::read_dir(common::shared().join("recordings"))
-        .unwrap()
-        .filter_map(|e| {
-            let name = e.ok()?.file_name().into_string().ok()?;
-            Some(name.strip_suffix(".truth.json")?.to_owned())
-        })
-        .collect();
-    ids.sort();
-    let (mut inside, mut total) = (0, 0);
+    let mut all = Tally::default();
     let mut per_draw = vec![(0, 0); replicas as usize];
-    let mut misses = Vec::new();
-    for id in &ids {
+    for id in &public_ids() {
         let (spec, rec, truth) = common::recording(id);
         let world = &truth["world"]["effects"];
         let n = spec.robot.n_tubes();
@@ -184,19 +132,22 @@ fn intervals_hold_the_truth_on_replicas_of_the_public_recordings() {
                 }
             }
             let d = diagnose(&user, &replay, &Options::default()).unwrap();
-            let mut mine = Vec::new();
+            let before = (all.inside, all.total);
             for fd in &d.report.findings {
-                if let Some(t) = common::public_truth(world, fd.effect.as_str(), n) {
-                    let (i, t) = tally(fd, &t, &mut mine);
-                    inside += i;
-                    total += t;
-                    draw.0 += i;
-                    draw.1 += t;
+                if let Some(t) = public_truth(world, fd.effect.as_str(), n) {
+                    all.finding(&format!("{id} replica {k}"), fd, &t, |_| None);
                 }
             }
-            misses.extend(mine.into_iter().map(|m| format!("{id} replica {k} {m}")));
+            draw.0 += all.inside - before.0;
+            draw.1 += all.total - before.1;
         }
     }
+    let Tally {
+        inside,
+        total,
+        misses,
+        ..
+    } = all;
     let coverage = inside as f64 / total.max(1) as f64;
     eprintln!(
         "replicas of the public recordings: {inside} of {total} scalars hold the truth \

@@ -1,9 +1,11 @@
 //! Helpers shared by the tests of ctr-diagnosis: the shared data (ctr-analysis's test
-//! set-up), the report's trials printed for a failing case, and a public recording's
-//! truth in the report's form.
+//! set-up), the report's trials printed for a failing case, the public recordings and
+//! their truth in the report's form, and intervals held against a truth (`coverage`).
 #![allow(dead_code)]
 
 use ctr_diagnosis::Report;
+
+pub mod coverage;
 
 #[path = "../../../ctr-analysis/tests/common/mod.rs"]
 mod analysis;
@@ -52,4 +54,17 @@ pub fn public_truth(
         }
         _ => e.clone(),
     })
+}
+
+/// The ids of the public recordings (`<id>.truth.json` in the shared data), sorted.
+pub fn public_ids() -> Vec<String> {
+    let mut ids: Vec<String> = std::fs::read_dir(shared().join("recordings"))
+        .unwrap()
+        .filter_map(|e| {
+            let name = e.ok()?.file_name().into_string().ok()?;
+            Some(name.strip_suffix(".truth.json")?.to_owned())
+        })
+        .collect();
+    ids.sort();
+    ids
 }
