@@ -5,7 +5,7 @@ use crate::error::DiagnoseError;
 use crate::fit::{Problem, MAX_FIT_ITERATIONS};
 use crate::locate;
 use crate::options::Options;
-use crate::prose::{explain, parameters};
+use crate::report::prose::{explain, parameters};
 use crate::report::{Diagnosis, Finding};
 use crate::residual::{errors, figures};
 use crate::start::{sample_period, Start};

@@ -2,9 +2,9 @@
 //! and where each model is near a snap along the recording.
 
 use crate::error::DiagnoseError;
+use crate::locate::stability::{checked_warn_margin, MarginRange, Marks};
 use crate::report::RunErrors;
 use crate::residual::errors;
-use crate::stability::{checked_warn_margin, MarginRange, Marks};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict_with_margins;
 use ctr_formats::Recording;

@@ -76,58 +76,44 @@
 //! concealed effects: the proof bench of the diagnosis, used by this crate's tests and
 //! by the example that writes the bundled `data/examples/liu2023-recording.csv`.
 
-mod angular;
 mod calibrate;
 mod candidates;
 mod empirical;
 mod error;
 mod evaluate;
 mod fit;
-mod html;
-mod hybrid;
 pub mod locate;
-mod noise;
-mod numbers;
 mod options;
-mod plots;
-mod prose;
 mod quantiles;
 mod report;
 mod residual;
 mod robust;
-mod screen;
 mod search;
-mod split;
-mod stability;
 mod start;
-mod suggest;
 #[cfg(feature = "synth")]
 pub mod synth;
 mod uncertainty;
-#[cfg(feature = "synth")]
-mod unmodelled;
 mod verify;
-mod weighting;
 
 pub use calibrate::calibrate;
 pub use candidates::EffectId;
+pub use empirical::hybrid::{FOLDS, MAX_TERMS};
 pub use error::DiagnoseError;
 pub use evaluate::evaluate;
-pub use html::{escape_html, Page};
-pub use hybrid::{FOLDS, MAX_TERMS};
+pub use locate::stability::{
+    checked_warn_margin, near_snap_words, MarginRange, Marks, Stability, ROWS_AFTER_A_SNAP,
+};
 pub use locate::Statement;
-pub use noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use options::{Checks, Options};
-pub use plots::Plot;
+pub use report::html::{escape_html, Page};
+pub use report::plots::Plot;
 pub use report::{
     fitted_file, Alternative, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
     Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::{diagnose, MIN_HELDOUT_GAIN};
-pub use split::{split, Holdout};
-pub use stability::{
-    checked_warn_margin, near_snap_words, MarginRange, Marks, Stability, ROWS_AFTER_A_SNAP,
-};
-pub use suggest::{MIN_SHRINK, SUGGESTED_ROWS, WIDE};
+pub use start::noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
+pub use start::split::{split, Holdout};
+pub use uncertainty::suggest::{MIN_SHRINK, SUGGESTED_ROWS, WIDE};
 pub use uncertainty::{CORRELATED_ABOVE, INDEPENDENT_BELOW, UNIDENTIFIED_EIGEN};
 pub use verify::MIN_GAIN_OVER_EMPIRICAL;

@@ -1,7 +1,7 @@
 //! The options of a diagnosis and a calibration.
 
 use crate::candidates::EffectId;
-use crate::split::Holdout;
+use crate::start::split::Holdout;
 use ctr_analysis::margin::DEFAULT_WARN_MARGIN;
 
 /// Options of a diagnosis.

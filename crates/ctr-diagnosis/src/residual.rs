@@ -2,7 +2,7 @@
 //! fit and held-out rows.
 //!
 //! A row's error ([`RowError`]) is its tip position's error, mm, then its angular error
-//! in mm-equivalent (`crate::angular`: the rotation from measured to predicted, times
+//! in mm-equivalent (`crate::start::angular`: the rotation from measured to predicted, times
 //! the recording's [`AngularWeight::mm_per_rad`](ctr_formats::AngularWeight::mm_per_rad);
 //! zeros when the recording's angular columns are not weighted). This is the one place
 //! the angular columns enter: the figures, the noise comparison, the outliers and the
@@ -10,8 +10,8 @@
 //! all see the same residual. Without angular columns every figure is the position's
 //! alone, bit for bit.
 
-use crate::angular;
 use crate::report::Figures;
+use crate::start::angular;
 use ctr_analysis::simulate::Prediction;
 use ctr_formats::Recording;
 

@@ -5,8 +5,8 @@ use super::remainder::WithRemainder;
 use super::{Assessment, OUTPUT_STEP};
 use crate::candidates::EffectId;
 use crate::fit::Problem;
-use crate::numbers::{leaves, replace};
-use crate::prose::parameters;
+use crate::report::numbers::{leaves, replace};
+use crate::report::prose::parameters;
 use nalgebra::{DMatrix, DVector};
 use serde_json::Value;
 

@@ -12,14 +12,14 @@
 //! ```
 //!
 //! with `t_p` the predicted tip frame's z axis. Its noise `sigma_rad` per component is
-//! estimated like the positions' (`crate::noise`): the second differences of the user
+//! estimated like the positions' (`crate::start::noise`): the second differences of the user
 //! model's `omega` along each run leave `6 sigma^2` of white noise per component (a
 //! tangent's projected on the plane normal to the measured tangent, where its noise
 //! lies), and the median absolute deviation of them is robust to reversals and
 //! outliers. A row's error then counts `omega * sigma_mm / sigma_rad` in mm beside its
 //! position error: both enter whitened by their own noise, the positions keeping their
 //! weight, so one residual serves the fits, the screen, the held-out figures, the
-//! outliers and the intervals alike (`crate::weighting` sets the weight,
+//! outliers and the intervals alike (`crate::start::weighting` sets the weight,
 //! `crate::residual` forms the residual). With an orientation, a tangent is not used
 //! again (the orientation holds it: its z axis).
 

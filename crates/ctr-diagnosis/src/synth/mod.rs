@@ -62,7 +62,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-pub use crate::unmodelled::{Unmodelled, WANDER_COMPONENTS, WANDER_PERIOD_SPAN};
+pub(crate) mod unmodelled;
+
+pub use crate::synth::unmodelled::{Unmodelled, WANDER_COMPONENTS, WANDER_PERIOD_SPAN};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
 use ctr_analysis::simulate::{predict, SimError};
@@ -574,7 +576,7 @@ fn measure(
     if let Some(columns) = spec.angular {
         let sigma = spec.angular_noise_sigma_deg.to_radians();
         for (row, q) in recording.rows.iter_mut().zip(&pred.q) {
-            crate::angular::measure(row, columns, q, sigma, rng);
+            crate::start::angular::measure(row, columns, q, sigma, rng);
         }
     }
     Ok(Synthetic {

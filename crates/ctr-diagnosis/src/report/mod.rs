@@ -1,12 +1,17 @@
 //! The report: the types a diagnosis returns (written as the mismatch report JSON of
 //! `docs/formats.md`) and its plain-language summary.
 
+pub(crate) mod html;
+pub(crate) mod numbers;
+pub(crate) mod plots;
+pub(crate) mod prose;
+
 use crate::candidates::EffectId;
+use crate::locate::stability::{MarginRange, Stability};
 use crate::locate::Statement;
-use crate::numbers::{self, sig};
-use crate::stability::{MarginRange, Stability};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Correction, RobotSpec};
+use numbers::sig;
 use serde::Serialize;
 
 /// Error figures of a model on a recording, mm.
@@ -150,7 +155,7 @@ pub struct Noise {
     pub angular: Option<AngularNoise>,
 }
 
-/// The angular columns of a recording in the residual (`crate::angular`).
+/// The angular columns of a recording in the residual (`crate::start::angular`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AngularNoise {
     /// The column set used (`qw,qx,qy,qz` or `tx,ty,tz`).

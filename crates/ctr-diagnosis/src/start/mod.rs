@@ -2,18 +2,22 @@
 //! error on it, the noise estimate and where the error sits; and how both finish: the
 //! report of the fitted model.
 
+pub(crate) mod angular;
+pub(crate) mod noise;
+pub(crate) mod split;
+pub(crate) mod weighting;
+
+use crate::empirical::hybrid;
 use crate::error::DiagnoseError;
-use crate::hybrid;
+use crate::locate::stability::{checked_warn_margin, Stability};
 use crate::locate::{self, Statement};
-use crate::noise::{estimate_noise, median, outlier_rows, outlier_rule, NOISE_TOLERANCE};
-use crate::prose::leftover;
+use crate::report::prose::leftover;
 use crate::report::{Diagnosis, Figures, Finding, Noise, Report, Split, Trial};
 use crate::residual::{errors, figures, inlier_figures, positions, RowError};
-use crate::split::{split, Holdout};
-use crate::stability::{checked_warn_margin, Stability};
-use crate::suggest;
+use crate::start::noise::{estimate_noise, median, outlier_rows, outlier_rule, NOISE_TOLERANCE};
+use crate::start::split::{split, Holdout};
+use crate::uncertainty::suggest;
 use crate::uncertainty::{self, Assessment};
-use crate::weighting;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::{predict_with_margins, Prediction};
 use ctr_formats::Recording;
@@ -53,7 +57,7 @@ pub(crate) struct Start {
 }
 
 /// `model`'s prediction of every run of `rec`, and `rec` with its angular columns
-/// weighted from it (`crate::weighting`): what [`Start::new`] starts from.
+/// weighted from it (`crate::start::weighting`): what [`Start::new`] starts from.
 pub(crate) fn simulated<'a>(
     model: &ModelSpec,
     rec: &'a Recording,

@@ -19,7 +19,7 @@ pub const OUTLIER_SIGMAS: f64 = 6.0;
 /// each run. Its `rms_mm` is that of a row's whole error: `sqrt(3) sigma`, and with
 /// weighted angular columns their `k` components' noise beside it,
 /// `sqrt(3 sigma^2 + k sigma_w^2)` (`sigma_w` the position noise they were weighted
-/// against: `crate::angular`).
+/// against: `crate::start::angular`).
 pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
     let mut d2 = Vec::new();
     for run in &rec.runs {

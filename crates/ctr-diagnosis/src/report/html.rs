@@ -14,10 +14,10 @@
 //! labels, names, the robot file) is HTML-escaped.
 
 use crate::error::DiagnoseError;
-use crate::numbers::{intervals, sig, Interval};
-use crate::plots::{Plot, RunError, Traces};
+use crate::locate::stability::Stability;
+use crate::report::numbers::{intervals, sig, Interval};
+use crate::report::plots::{Plot, RunError, Traces};
 use crate::report::{fitted_file, Report, REMOVED};
-use crate::stability::Stability;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Recording, RobotSpec};
 use serde_json::Value;

@@ -1,18 +1,20 @@
 //! The search: forward selection over the effects the model leaves out. Each round
 //! every remaining candidate is screened (fitted alone beside the effects found so far,
-//! [`crate::screen`]), then the most promising are fitted in full with the effects
+//! [`crate::search::screen`]), then the most promising are fitted in full with the effects
 //! found so far free, and of those the information criterion and the held-out rows
 //! both accept, the best on the held-out rows is added.
+
+pub(crate) mod screen;
 
 use crate::candidates::{not_applicable, EffectId};
 use crate::error::DiagnoseError;
 use crate::fit::{Problem, MAX_FIT_ITERATIONS};
 use crate::locate;
 use crate::options::Options;
-use crate::prose::{explain, parameters};
+use crate::report::prose::{explain, parameters};
 use crate::report::{Alternative, Diagnosis, Figures, Finding, Trial, REMOVED};
 use crate::residual::{components, errors, figures, positions, tips, RowError};
-use crate::screen::{Screen, Screened, FULL_FITS};
+use crate::search::screen::{Screen, Screened, FULL_FITS};
 use crate::start::{sample_period, Start};
 use crate::verify;
 use ctr_analysis::model::ModelSpec;

@@ -13,6 +13,8 @@
 //!   loop that opens when the motion reverses);
 //! - position in the workspace: `e = a + B p` (p the modelled tip: a frame mismatch).
 
+pub mod stability;
+
 use ctr_formats::Recording;
 use serde::Serialize;
 

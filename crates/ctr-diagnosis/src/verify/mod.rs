@@ -54,13 +54,13 @@
 //! every finding passes. [`Checks`] turns one off, to show what it is for.
 
 use crate::candidates::EffectId;
+use crate::empirical::hybrid;
 use crate::empirical::{self, Basis, Field};
 use crate::fit::Problem;
-use crate::hybrid;
-use crate::noise::NOISE_TOLERANCE;
 use crate::options::Checks;
 use crate::quantiles::{chi2_95, Z975};
 use crate::residual::{errors, figures, positions, size2, tips, with_angles, RowError};
+use crate::start::noise::NOISE_TOLERANCE;
 use crate::uncertainty::{self, Assessment};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;

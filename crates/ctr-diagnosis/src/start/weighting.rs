@@ -1,10 +1,10 @@
 //! The angular columns of a recording weighted against its positions: both noises
 //! estimated on the user model's error, the recording given the weight
-//! ([`AngularWeight`]) that makes its residual whiten them alike (`crate::angular`).
+//! ([`AngularWeight`]) that makes its residual whiten them alike (`crate::start::angular`).
 
-use crate::angular;
-use crate::noise::estimate_noise;
 use crate::residual::{errors, positions};
+use crate::start::angular;
+use crate::start::noise::estimate_noise;
 use ctr_analysis::simulate::Prediction;
 use ctr_formats::{AngularWeight, Recording};
 use std::borrow::Cow;

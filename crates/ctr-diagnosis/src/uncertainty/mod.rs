@@ -40,11 +40,13 @@
 //! Pairs correlated above [`CORRELATED_ABOVE`] are listed: the data tell them apart
 //! only by their difference.
 
+pub(crate) mod suggest;
+
 use crate::candidates::{EffectId, Label};
 use crate::fit::Problem;
-use crate::numbers::sig;
-use crate::prose::{explain, parameters};
 use crate::quantiles::t975;
+use crate::report::numbers::sig;
+use crate::report::prose::{explain, parameters};
 use crate::report::{Correlated, Finding};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Correction, Recording};

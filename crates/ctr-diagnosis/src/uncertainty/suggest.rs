@@ -26,7 +26,7 @@
 //! proposed only when it shrinks their intervals by [`MIN_SHRINK`] on average.
 
 use crate::fit::Problem;
-use crate::numbers::sig;
+use crate::report::numbers::sig;
 use crate::report::{ExpectedInterval, JointRun, SuggestedRun};
 use crate::uncertainty::{parts, pseudo_inverse, Assessment, CORRELATED_ABOVE};
 use ctr_formats::{RecordedRow, Recording, Run};
