@@ -2,7 +2,9 @@
 
 use crate::candidates::{not_applicable, EffectId};
 use crate::error::DiagnoseError;
+use crate::finish::{finish, WhereLeft};
 use crate::fit::{Problem, MAX_FIT_ITERATIONS};
+use crate::found::Found;
 use crate::locate;
 use crate::options::Options;
 use crate::report::prose::{explain, parameters};
@@ -47,7 +49,7 @@ pub fn calibrate(
     // the angular columns weighted by their noise: the one residual of the fits
     let (weighted, base) = crate::start::simulated(model, rec)?;
     let rec: &Recording = &weighted;
-    let start = Start::new(model, rec, base, &opt.holdout, opt.threads, opt.warn_margin)?;
+    let start = Start::new(model, rec, base, opt)?;
     let n = model.robot.n_tubes();
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {
@@ -56,13 +58,8 @@ pub fn calibrate(
         }
     }
     let problem = Problem {
-        base: model.clone(),
-        blocks: blocks.clone(),
-        rec,
-        rows: start.fit_rows.clone(),
-        huber_mm: start.huber_mm(),
-        threads: ctr_formats::parallel::resolve_threads(opt.threads),
         clearance_table: opt.clearance_table,
+        ..start.problem(model.clone(), blocks.clone())
     };
     let period = sample_period(rec);
     // start every block from the model's values (or its first start when absent); a
@@ -132,16 +129,19 @@ pub fn calibrate(
             equally_explained_by: Vec::new(),
         })
         .collect();
-    Ok(start.finish(
-        rec,
-        m,
+    let found = Found {
+        model: m,
         findings,
         fig,
-        &e,
-        &pred.margin,
-        Vec::new(),
-        pred.failed,
+        cost: fitted.cost,
+        e,
+        tried: Vec::new(),
+    };
+    Ok(finish(
+        start,
+        found,
+        &pred,
         None,
-        |_| "`ctr-cli diagnose` searches the other effects".into(),
+        WhereLeft::Said("`ctr-cli diagnose` searches the other effects"),
     ))
 }

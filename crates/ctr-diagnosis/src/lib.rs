@@ -78,12 +78,16 @@
 
 mod calibrate;
 mod candidates;
+mod diagnose;
 mod empirical;
 mod error;
 mod evaluate;
+mod finish;
 mod fit;
+mod found;
 pub mod locate;
 mod options;
+mod paired;
 mod quantiles;
 mod report;
 mod residual;
@@ -93,10 +97,12 @@ mod start;
 #[cfg(feature = "synth")]
 pub mod synth;
 mod uncertainty;
+mod verdict;
 mod verify;
 
 pub use calibrate::calibrate;
 pub use candidates::EffectId;
+pub use diagnose::diagnose;
 pub use empirical::hybrid::{FOLDS, MAX_TERMS};
 pub use error::DiagnoseError;
 pub use evaluate::evaluate;
@@ -111,7 +117,7 @@ pub use report::{
     fitted_file, Alternative, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
     Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
-pub use search::{diagnose, MIN_HELDOUT_GAIN};
+pub use search::MIN_HELDOUT_GAIN;
 pub use start::noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use start::split::{split, Holdout};
 pub use uncertainty::suggest::{MIN_SHRINK, SUGGESTED_ROWS, WIDE};

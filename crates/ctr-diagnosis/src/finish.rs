@@ -1,0 +1,117 @@
+//! How a diagnosis and a calibration finish (the method's steps 6 to 8): the verdict on
+//! what the fitted model leaves ([`Verdict`]), the intervals of every finding and the
+//! run to record next ([`crate::uncertainty`]), the rows near a snap, and the report.
+
+use crate::found::Found;
+use crate::locate;
+use crate::report::{Diagnosis, Report, Split};
+use crate::residual::{positions, RowError};
+use crate::start::noise::outlier_rule;
+use crate::start::{sample_period, Start};
+use crate::uncertainty::{self, suggest, Assessment};
+use crate::verdict::Verdict;
+use ctr_analysis::simulate::Prediction;
+use ctr_formats::Recording;
+
+/// Where the report says what is left sits.
+pub(crate) enum WhereLeft {
+    /// Located on the fit rows, with what outside the vocabulary makes such a pattern.
+    Located,
+    /// In these words.
+    Said(&'static str),
+}
+
+/// The report of `found`, `pred` its prediction of every run with stability margins.
+/// `assessed`: the uncertainty of exactly these findings on the fit rows, when the
+/// checks computed it (not computed again).
+pub(crate) fn finish(
+    start: Start,
+    found: Found,
+    pred: &Prediction,
+    assessed: Option<Assessment>,
+    where_left: WhereLeft,
+) -> Diagnosis {
+    let rec = start.rec;
+    let verdict = Verdict::new(&start, &found.e, &pred.margin);
+    let Found {
+        model,
+        mut findings,
+        fig,
+        tried,
+        e,
+        ..
+    } = found;
+    // intervals at the fitted model; what the data cannot pin set to the nominal; an
+    // unexplained remainder widens them by what it can move them by
+    let effects: Vec<_> = findings.iter().map(|f| f.effect).collect();
+    let problem = uncertainty::problem_of(
+        rec,
+        &model,
+        &effects,
+        &start.fit_rows,
+        start.huber_mm(),
+        start.threads,
+    );
+    let (fitted, overall, assessment) = uncertainty::attach(
+        &problem,
+        &start.user,
+        &mut findings,
+        assessed,
+        (!verdict.explained).then_some(&verdict.correction),
+    );
+    let fit_share = start.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
+    let next =
+        assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
+    let (suggested_run, suggested_joints) = next.unzip();
+    let unexplained = verdict.in_words(&start, &fig, || match where_left {
+        WhereLeft::Located => located_left(rec, &e, &start.fit_mask(), &pred.p),
+        WhereLeft::Said(words) => words.into(),
+    });
+    let explained = verdict.explained;
+    Diagnosis {
+        report: Report {
+            baseline: start.baseline,
+            findings,
+            final_: fig,
+            explained,
+            unexplained,
+            empirical: (!explained).then_some(verdict.empirical),
+            noise: verdict.noise,
+            split: Split {
+                method: start.split_method,
+                fit_rows: start.fit_rows.len(),
+                heldout_rows: rec.rows.len() - start.fit_rows.len(),
+            },
+            located: start.located,
+            tried,
+            failed_rows: pred.failed,
+            outlier_lines: verdict.outliers.iter().map(|&r| rec.rows[r].line).collect(),
+            outlier_rule: outlier_rule(),
+            outlier_threshold_mm: verdict.outlier_threshold_mm,
+            final_inliers: verdict.inliers,
+            uncertainty_method: overall.method,
+            identifiability: overall.identifiability,
+            correlated: overall.correlated,
+            suggested_run,
+            stability: verdict.stability,
+        },
+        fitted,
+        empirical: (!explained).then_some(verdict.correction),
+        suggested_joints,
+    }
+}
+
+/// Where the error vectors `e` sit on the fit rows (`fit`), `tips` the modelled tips,
+/// and what outside the vocabulary makes the strongest pattern that is not a run.
+fn located_left(rec: &Recording, e: &[RowError], fit: &[bool], tips: &[[f64; 3]]) -> String {
+    let statements = locate::locate(rec, &positions(e), fit, tips);
+    let mut out = locate::summary(&statements);
+    if let Some(c) = statements
+        .iter()
+        .find(|s| s.kind != "run")
+        .and_then(locate::causes)
+    {
+        out += &format!(". Outside the vocabulary, this pattern comes from {c}");
+    }
+    out
+}

@@ -1,0 +1,259 @@
+//! One round of the search: every candidate left is screened ([`Screen`]) beside the
+//! effects found so far, the most promising are fitted in full with those effects free,
+//! and each is judged by the information criterion and the held-out rows. The best that
+//! both accept is the round's pick; the others are its trials.
+
+use super::MIN_HELDOUT_GAIN;
+use crate::candidates::{not_applicable, EffectId};
+use crate::fit::MAX_FIT_ITERATIONS;
+use crate::found::{simulate, Found};
+use crate::report::{Figures, Trial};
+use crate::residual::{components, figures, RowError};
+use crate::search::screen::{Screen, Screened, FULL_FITS};
+use crate::start::{sample_period, Start};
+use ctr_analysis::model::ModelSpec;
+
+/// Why a candidate has no figures.
+const CANNOT_SIMULATE: &str = "the model cannot be simulated with this effect";
+
+/// A candidate fitted in full and accepted by both tests.
+#[derive(Clone, Debug)]
+pub(crate) struct Passing {
+    pub effect: EffectId,
+    /// The model found so far with it, fitted.
+    pub model: ModelSpec,
+    pub fig: Figures,
+    /// Robust cost on the fit rows, mm^2.
+    pub cost: f64,
+    /// Error vectors, every row.
+    pub e: Vec<RowError>,
+}
+
+/// What a round found.
+pub(crate) struct Outcome {
+    /// Candidates that do not apply to this model or recording (listed in round 1).
+    pub not_applicable: Vec<Trial>,
+    /// The trials of the candidates fitted or screened, in the candidates' order.
+    pub trials: Vec<Trial>,
+    /// Every candidate both tests accept, in the order fitted.
+    pub passing: Vec<Passing>,
+}
+
+impl Outcome {
+    /// The candidate of lowest held-out RMS that both tests accept (the first of
+    /// equals).
+    pub(crate) fn best(&self) -> Option<&Passing> {
+        self.passing
+            .iter()
+            .fold(None, |best: Option<&Passing>, p| match best {
+                Some(b) if b.fig.heldout_rms_mm <= p.fig.heldout_rms_mm => Some(b),
+                _ => Some(p),
+            })
+    }
+}
+
+/// The trial of a candidate that was not fitted, and why.
+pub(crate) fn not_fitted(round: usize, effect: EffectId, note: String) -> Trial {
+    Trial {
+        round,
+        effect,
+        rms_mm: f64::NAN,
+        heldout_rms_mm: f64::NAN,
+        bic_change: f64::NAN,
+        added: false,
+        note,
+    }
+}
+
+/// Round `round` of the search from `found`, over `candidates`.
+pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[EffectId]) -> Outcome {
+    let (todo, not_applicable) = left(start, found, round, candidates);
+    let n = start.user.robot.n_tubes();
+    // the screen: every (candidate, start) fitted on a sample of the fit rows with the
+    // effects found so far held, each on its own thread of the pool
+    let jobs: Vec<(EffectId, Vec<f64>)> = todo
+        .iter()
+        .flat_map(|&c| {
+            c.starts(n, sample_period(start.rec))
+                .into_iter()
+                .map(move |x0| (c, x0))
+        })
+        .collect();
+    let held = found.effects();
+    let screen = Screen::new(
+        &found.model,
+        &held,
+        start.rec,
+        &start.fit_rows,
+        start.huber_mm(),
+        start.threads,
+    );
+    let screened = ctr_formats::parallel::map(&jobs, start.threads, |(c, x0)| screen.fit(*c, x0));
+    let ranked = screen.rank(&todo, &jobs, screened, start.threads);
+    let mut verdicts = Vec::new();
+    let mut passing = Vec::new();
+    let mut on_screen = Vec::new();
+    let mut full_fits = 0;
+    for r in &ranked {
+        match screen_note(&screen, r, full_fits, n) {
+            Some(note) => on_screen.push((r, note)),
+            None => {
+                full_fits += 1;
+                let (trial, pass) = full_fit(start, found, round, r);
+                if let Some(p) = pass {
+                    passing.push(p);
+                }
+                verdicts.push(trial);
+            }
+        }
+    }
+    verdicts.extend(judged_on_screen(start, &screen, round, on_screen));
+    // the trials in the candidates' order
+    let trials = todo
+        .iter()
+        .map(|&c| match verdicts.iter().position(|t| t.effect == c) {
+            Some(i) => verdicts.remove(i),
+            None => not_fitted(round, c, CANNOT_SIMULATE.into()),
+        })
+        .collect();
+    Outcome {
+        not_applicable,
+        trials,
+        passing,
+    }
+}
+
+/// The candidates left to try in `round` (neither in the user's model nor found), and
+/// the trials of those that do not apply here (listed in round 1 only).
+fn left(
+    start: &Start,
+    found: &Found,
+    round: usize,
+    candidates: &[EffectId],
+) -> (Vec<EffectId>, Vec<Trial>) {
+    let mut todo = Vec::new();
+    let mut skipped = Vec::new();
+    for &c in candidates {
+        if c.present_in(&start.user) || found.has(c) {
+            continue;
+        }
+        if let Some(note) = not_applicable(c, &found.model, start.rec) {
+            if round == 1 {
+                skipped.push(not_fitted(round, c, note));
+            }
+            continue;
+        }
+        todo.push(c);
+    }
+    (todo, skipped)
+}
+
+/// Why the screened candidate `r` is judged on its screen rather than fitted in full
+/// (`full_fits` made so far this round), or `None` to fit it in full: only the
+/// [`FULL_FITS`] best that the screen projects below the held model's cost are.
+fn screen_note(screen: &Screen, r: &Screened, full_fits: usize, n: usize) -> Option<String> {
+    if full_fits < FULL_FITS && r.projected < screen.cost0 {
+        None
+    } else if screen.bic(r.cost, r.effect.n_params(n)) >= 0.0 {
+        Some(format!(
+            "not added: the information criterion rejects it (fitted with the effects \
+             found so far held, {})",
+            screen.rows_in_words()
+        ))
+    } else {
+        Some(format!(
+            "not fitted in full: the screen ranked {FULL_FITS} candidates higher"
+        ))
+    }
+}
+
+/// Candidate `r` fitted in full from where its screen ended, with the effects found so
+/// far free (a first effect that soaked up part of another must be able to give it
+/// back), and judged: its trial, and the candidate when both tests accept it.
+fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial, Option<Passing>) {
+    let c = r.effect;
+    let k = c.n_params(start.user.robot.n_tubes());
+    let blocks: Vec<EffectId> = found.effects().into_iter().chain([c]).collect();
+    let p = start.problem(found.model.clone(), blocks);
+    let x: Vec<f64> = found
+        .parameters_in(&found.model)
+        .into_iter()
+        .chain(r.x.iter().copied())
+        .collect();
+    let n_obs = (components(start.rec) * start.fit_rows.len()) as f64;
+    // the cost the information criterion asks for: a fit that cannot reach it stops
+    // early
+    let bic_cost = found.cost * (-(k as f64) * n_obs.ln() / n_obs).exp();
+    let fitted = p
+        .fit_until(&x, MAX_FIT_ITERATIONS, Some(bic_cost))
+        .and_then(|f| {
+            let m = p.model(&f.x);
+            let e = simulate(start, &m)?;
+            Some((f, m, e))
+        });
+    let Some((fitted, m, e)) = fitted else {
+        return (not_fitted(round, c, CANNOT_SIMULATE.into()), None);
+    };
+    let fig = figures(&e, &start.held);
+    let bic = n_obs * (fitted.cost / found.cost).ln() + k as f64 * n_obs.ln();
+    let note = if fitted.gave_up {
+        "not added: the information criterion rejects it (its fit stopped where the gain \
+         left, linearised, could not pay for its parameters)"
+    } else if bic >= 0.0 {
+        "not added: the information criterion rejects it"
+    } else if fig.heldout_rms_mm >= found.fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN) {
+        "not added: no gain on held-out rows"
+    } else {
+        ""
+    };
+    let trial = Trial {
+        round,
+        effect: c,
+        rms_mm: fig.rms_mm,
+        heldout_rms_mm: fig.heldout_rms_mm,
+        bic_change: bic,
+        added: false,
+        note: note.to_string(),
+    };
+    let pass = note.is_empty().then_some(Passing {
+        effect: c,
+        model: m,
+        fig,
+        cost: fitted.cost,
+        e,
+    });
+    (trial, pass)
+}
+
+/// The trials of the candidates judged on their screen: the model with its screened
+/// parameters, simulated on every row (in parallel).
+fn judged_on_screen(
+    start: &Start,
+    screen: &Screen,
+    round: usize,
+    on_screen: Vec<(&Screened, String)>,
+) -> Vec<Trial> {
+    let n = start.user.robot.n_tubes();
+    let screen_errors = ctr_formats::parallel::map(&on_screen, start.threads, |(r, _)| {
+        simulate(start, &screen.model(r.effect, &r.x))
+    });
+    on_screen
+        .into_iter()
+        .zip(screen_errors)
+        .map(|((r, note), e)| {
+            let Some(e) = e else {
+                return not_fitted(round, r.effect, CANNOT_SIMULATE.into());
+            };
+            let fig = figures(&e, &start.held);
+            Trial {
+                round,
+                effect: r.effect,
+                rms_mm: fig.rms_mm,
+                heldout_rms_mm: fig.heldout_rms_mm,
+                bic_change: screen.bic(r.cost, r.effect.n_params(n)),
+                added: false,
+                note,
+            }
+        })
+        .collect()
+}

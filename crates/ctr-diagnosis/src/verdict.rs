@@ -1,0 +1,89 @@
+//! The verdict (the method's step 6): is what the fitted model leaves consistent with
+//! the noise? The noise is estimated again on what it leaves (closer to white, so the
+//! lower estimate is kept), the labelled empirical term is fitted on top of the physics
+//! ([`crate::empirical::hybrid`]), tracker outliers are judged on what is left after
+//! both, and `explained` holds when the held-out RMS without them is at most
+//! [`NOISE_TOLERANCE`] times the noise's RMS.
+
+use crate::empirical::hybrid;
+use crate::locate::stability::Stability;
+use crate::report::prose::leftover;
+use crate::report::{Empirical, Figures, Noise};
+use crate::residual::{inlier_figures, positions, RowError};
+use crate::start::noise::{estimate_noise, outlier_rows, NOISE_TOLERANCE};
+use crate::start::Start;
+use ctr_formats::Correction;
+
+/// The verdict on a fitted model's error (see the module docs).
+pub(crate) struct Verdict {
+    /// The noise estimate the verdict compares with.
+    pub noise: Noise,
+    /// The empirical term fitted on top of the physics, as the report lists it.
+    pub empirical: Empirical,
+    /// The same, as the robot file's `[model.empirical]`.
+    pub correction: Correction,
+    /// Rows set aside as tracker outliers, ascending.
+    pub outliers: Vec<usize>,
+    /// The outlier rule's threshold, mm.
+    pub outlier_threshold_mm: f64,
+    /// The rows near a snap, and the outliers among them.
+    pub stability: Stability,
+    /// The figures without the outlier rows.
+    pub inliers: Figures,
+    /// Whether the held-out residual is consistent with the noise.
+    pub explained: bool,
+}
+
+impl Verdict {
+    /// The verdict on the fitted model whose error vectors are `e` and stability
+    /// margins `margin` (per row, from the same simulation).
+    pub(crate) fn new(start: &Start, e: &[RowError], margin: &[f64]) -> Self {
+        let rec = start.rec;
+        let again = estimate_noise(rec, &positions(e));
+        let noise = if again.sigma_mm_per_axis < start.noise.sigma_mm_per_axis
+            || !start.noise.sigma_mm_per_axis.is_finite()
+        {
+            again
+        } else {
+            start.noise.clone()
+        };
+        // outliers judged on what is left after the physics and the empirical term: a
+        // structured residual is spread, not outlying
+        let (empirical, correction, left) = hybrid::fit(rec, e, &start.held, start.huber_mm());
+        let (outliers, outlier_threshold_mm) = outlier_rows(rec, &left);
+        let stability = Stability::new(rec, start.warn_margin, &start.margin0, margin, &outliers);
+        let inliers = inlier_figures(e, &start.held, &outliers);
+        let explained = inliers.heldout_rms_mm <= NOISE_TOLERANCE * noise.rms_mm;
+        Verdict {
+            noise,
+            empirical,
+            correction,
+            outliers,
+            outlier_threshold_mm,
+            stability,
+            inliers,
+            explained,
+        }
+    }
+
+    /// What is left, in words, the fitted model's figures being `fig` (`where_left`
+    /// says where).
+    pub(crate) fn in_words(
+        &self,
+        start: &Start,
+        fig: &Figures,
+        where_left: impl FnOnce() -> String,
+    ) -> String {
+        leftover(
+            start.rec,
+            fig,
+            &self.inliers,
+            &self.outliers,
+            &self.stability.outlier_lines_near_snap,
+            self.outlier_threshold_mm,
+            &self.noise,
+            self.explained,
+            where_left,
+        )
+    }
+}

@@ -1,0 +1,94 @@
+//! Check 2 of a finding: its parameters are constant, not proportional to a feature of
+//! the rows (see the module docs of [`crate::verify`]).
+
+use super::{Context, Failure, MIN_GAIN_OVER_EMPIRICAL};
+use crate::candidates::EffectId;
+use crate::empirical::{self, Basis, Field};
+use crate::fit::Problem;
+use crate::residual::{figures, positions, tips, with_angles, RowError};
+use ctr_analysis::model::ModelSpec;
+
+impl Context<'_> {
+    /// Check 2: the failure of `c` (`e_without`: `m`'s errors with `c` taken out) when
+    /// its parameters fit clearly better proportional to a feature than constant.
+    pub(super) fn against_proportional(
+        &self,
+        m: &ModelSpec,
+        e_without: &[RowError],
+        c: EffectId,
+    ) -> Option<Failure> {
+        let (feature, h_const, h_prop) = self.proportional(m, e_without, c)?;
+        (h_prop < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_const).then_some(Failure::Varying {
+            feature,
+            constant_heldout_rms_mm: h_const,
+            heldout_rms_mm: h_prop,
+        })
+    }
+
+    /// The tip directions of `c`'s parameters in `m` at every row: column `j` of the
+    /// Jacobian of the tip positions with respect to its parameters, `J_c,j(q)`.
+    pub(super) fn directions(&self, m: &ModelSpec, c: EffectId) -> Option<Vec<Field>> {
+        let rows = self.rec.rows.len();
+        let problem = Problem {
+            base: m.clone(),
+            blocks: vec![c],
+            rec: self.rec,
+            rows: (0..rows).collect(),
+            huber_mm: self.huber_mm,
+            threads: self.threads,
+            clearance_table: None,
+        };
+        let x = c.read(m);
+        let p0 = problem.predictions(&x)?;
+        let jac = problem.jacobian(&x, &p0)?;
+        Some(
+            (0..jac.ncols())
+                .map(|j| {
+                    (0..rows)
+                        .map(|r| [jac[(3 * r, j)], jac[(3 * r + 1, j)], jac[(3 * r + 2, j)]])
+                        .collect()
+                })
+                .collect(),
+        )
+    }
+
+    /// With `c` taken out (its error `e`): the held-out RMS of the linear fit of the
+    /// `k` constant parameter directions `J_c,j`, and of the best `k` proportional
+    /// fields `J_c,j f`, with the feature chosen first.
+    fn proportional(
+        &self,
+        m: &ModelSpec,
+        e_row: &[RowError],
+        c: EffectId,
+    ) -> Option<(String, f64, f64)> {
+        // fitted to the positions (the tip directions `J_c`); the angular errors stay
+        let e = &positions(e_row);
+        let rows = self.rec.rows.len();
+        let constant = self.directions(m, c)?;
+        let k = constant.len();
+        let direction = |j: usize, r: usize| constant[j][r];
+        let basis = Basis::raw(self.rec, &tips(self.rec, e_row));
+        let mut fields: Vec<Field> = Vec::new();
+        let mut names = Vec::new();
+        for j in 0..k {
+            for (feature, col) in basis.varying() {
+                fields.push(
+                    (0..rows)
+                        .map(|r| direction(j, r).map(|d| d * col[r]))
+                        .collect(),
+                );
+                names.push(feature.name());
+            }
+        }
+        let w = empirical::weights(e, &self.fit, self.huber_mm);
+        let heldout = |fields: &[Field], terms: &[(usize, f64)]| {
+            let left = empirical::subtract(fields, terms, e);
+            figures(&with_angles(&left, e_row), self.held).heldout_rms_mm
+        };
+        let all: Vec<usize> = (0..k).collect();
+        let h_const = heldout(&constant, &empirical::coefficients(&constant, &all, e, &w));
+        let terms = empirical::pursue(&fields, e, &w, k);
+        let first = terms.first().map(|&(i, _)| names[i].clone())?;
+        Some((first, h_const, heldout(&fields, &terms)))
+    }
+}
