@@ -300,6 +300,13 @@ impl EffectId {
         }
     }
 
+    /// Whether parameter `i` of the effect means, at zero, that the effect is not
+    /// there (its [`read`](Self::read) of a model without it): every parameter but a
+    /// clearance's peak angle, which places a deflection rather than sizing it.
+    pub(crate) fn absence_of(self, i: usize) -> bool {
+        !(self == EffectId::Clearance && i % 2 == 1)
+    }
+
     /// The effect's parameters as the model holds them (zeros when absent).
     pub(crate) fn read(self, m: &ModelSpec) -> Vec<f64> {
         let n = m.robot.n_tubes();

@@ -5,9 +5,10 @@ use crate::finish::{finish, WhereLeft};
 use crate::found::Found;
 use crate::options::Options;
 use crate::report::Diagnosis;
+use crate::predictive::readmit;
 use crate::search::forward_selection;
 use crate::start::{simulated, Start};
-use crate::verify::until_all_pass;
+use crate::verify::settle;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::{predict_with_margins, Prediction};
 use ctr_formats::Recording;
@@ -37,7 +38,10 @@ pub fn diagnose(
     let (weighted, base) = simulated(model, rec)?;
     let start = Start::new(model, &weighted, base, opt)?;
     let found = forward_selection(&start, &opt.candidates)?;
-    let (found, assessed) = until_all_pass(&start, found, opt.checks);
+    let (established, removed, assessed) = settle(&start, found.clone(), opt.checks);
+    let (found, only_established) = readmit(&start, found, established, removed);
+    // the checks' assessment is of the established findings alone
+    let assessed = assessed.filter(|_| only_established);
     let found = without_alternatives_found(found);
     let pred = with_margins(&start, &found)?;
     Ok(finish(start, found, &pred, assessed, WhereLeft::Located))

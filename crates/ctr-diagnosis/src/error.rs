@@ -11,6 +11,8 @@ pub enum DiagnoseError {
     Plot(String),
     /// An option is out of its range (the option and why).
     Option(String),
+    /// A fit did not move from its start though it could have: no estimate to report.
+    NotFitted(String),
 }
 
 impl std::fmt::Display for DiagnoseError {
@@ -20,6 +22,7 @@ impl std::fmt::Display for DiagnoseError {
             DiagnoseError::Split(m) => write!(f, "{m}"),
             DiagnoseError::Plot(m) => write!(f, "{m}"),
             DiagnoseError::Option(m) => write!(f, "{m}"),
+            DiagnoseError::NotFitted(m) => write!(f, "{m}"),
         }
     }
 }

@@ -2,14 +2,16 @@
 //! what the fitted model leaves ([`Verdict`]), the intervals of every finding and the
 //! run to record next ([`crate::uncertainty`]), the rows near a snap, and the report.
 
-use crate::found::Found;
+use crate::found::{simulate, Found};
+use crate::grade;
 use crate::locate;
-use crate::report::{Diagnosis, Report, Split};
-use crate::residual::{positions, RowError};
+use crate::report::{Diagnosis, Figures, Report, Split};
+use crate::residual::{figures, positions, RowError};
 use crate::start::noise::outlier_rule;
 use crate::start::{sample_period, Start};
 use crate::uncertainty::{self, suggest, Assessment};
 use crate::verdict::Verdict;
+use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::Prediction;
 use ctr_formats::Recording;
 
@@ -32,6 +34,8 @@ pub(crate) fn finish(
     where_left: WhereLeft,
 ) -> Diagnosis {
     let rec = start.rec;
+    let mut found = found;
+    without_each(&start, &mut found);
     let verdict = Verdict::new(&start, &found.e, &pred.margin);
     let Found {
         model,
@@ -59,6 +63,7 @@ pub(crate) fn finish(
         assessed,
         (!verdict.explained).then_some(&verdict.correction),
     );
+    grade::by_intervals(&mut findings);
     let fit_share = start.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
     let next =
         assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
@@ -115,3 +120,39 @@ fn located_left(rec: &Recording, e: &[RowError], fit: &[bool], tips: &[[f64; 3]]
     }
     out
 }
+
+/// Each finding's figures before and after it on one basis, the final model's: before
+/// is the final model without it (the others as fitted), after the final model; what
+/// the fitted model loses without each.
+fn without_each(start: &Start, found: &mut Found) {
+    let without: Vec<ModelSpec> = found
+        .findings
+        .iter()
+        .map(|f| {
+            let mut m = found.model.clone();
+            f.effect.remove(&mut m);
+            m
+        })
+        .collect();
+    let errors = ctr_formats::parallel::map(&without, start.threads, |m| simulate(start, m));
+    let after = found.fig;
+    for (f, e) in found.findings.iter_mut().zip(errors) {
+        let before = e.map_or(UNKNOWN, |e| figures(start.rec, &e, &start.held));
+        f.rms_mm_before = before.rms_mm;
+        f.rms_mm_after = after.rms_mm;
+        f.heldout_rms_mm_before = before.heldout_rms_mm;
+        f.heldout_rms_mm_after = after.heldout_rms_mm;
+        f.heldout_rms_deg = before
+            .angular
+            .zip(after.angular)
+            .map(|(a, b)| [a.heldout_rms_deg, b.heldout_rms_deg]);
+    }
+}
+
+/// The figures of a model that cannot be simulated.
+const UNKNOWN: Figures = Figures {
+    rms_mm: f64::NAN,
+    max_mm: f64::NAN,
+    heldout_rms_mm: f64::NAN,
+    angular: None,
+};

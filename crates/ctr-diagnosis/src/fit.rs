@@ -108,7 +108,15 @@ pub(crate) struct Fitted {
     /// The fit stopped because the cost could not reach its target (see
     /// [`Problem::fit_until`]): `cost` is where it stopped, not a minimum.
     pub gave_up: bool,
+    /// The fit ended where no step lowered the cost although the linearised problem
+    /// promised a gain of more than [`STUCK_GAIN`] of the cost: not a minimum it can
+    /// vouch for.
+    pub stuck: bool,
 }
+
+/// Share of the cost the Gauss-Newton model's decrease may promise at the end of a fit
+/// that found no lower cost, for the end to count as a minimum rather than stuck.
+const STUCK_GAIN: f64 = 1e-6;
 
 /// How many times the Gauss-Newton model's decrease the rest of a fit may still gain
 /// before [`Problem::fit_until`] gives up on a target: the model is exact for a linear
@@ -266,52 +274,56 @@ impl Problem<'_> {
         Some(self.cost(&self.errors(&p)).0)
     }
 
-    /// Jacobian of the predictions by central differences (one-sided at a bound).
+    /// Jacobian of the predictions by central differences (one-sided at a bound, or
+    /// where one side cannot be simulated).
     pub fn jacobian(&self, x: &[f64], p0: &[f64]) -> Option<DMatrix<f64>> {
+        Some(self.jacobian_and_blocked(x, p0).0)
+    }
+
+    /// [`jacobian`](Self::jacobian), and for each parameter whether the model cannot be
+    /// simulated a step up / down from `x` (a feed offset pushing a joint past its
+    /// tube's end): the fit's steps hold it there on that side.
+    fn jacobian_and_blocked(&self, x: &[f64], p0: &[f64]) -> (DMatrix<f64>, Vec<[bool; 2]>) {
         let np = x.len();
         let m = p0.len();
-        let column = |j: usize| -> Option<Vec<f64>> {
+        let column = |j: usize| -> (Vec<f64>, [bool; 2]) {
             let (h, (lo, hi)) = self.scale(j);
-            let mut xp = x.to_vec();
-            let mut xm = x.to_vec();
-            let (mut up, mut down) = (h, h);
-            if x[j] + h > hi {
-                up = 0.0;
-            }
-            if x[j] - h < lo {
-                down = 0.0;
-            }
+            let up = if x[j] + h > hi { 0.0 } else { h };
+            let down = if x[j] - h < lo { 0.0 } else { h };
+            // a side the model cannot be simulated on is left out: one-sided there, a
+            // zero column (the parameter cannot move) where neither side can
+            let side = |d: f64| -> Option<Vec<f64>> {
+                let mut xs = x.to_vec();
+                xs[j] += d;
+                (d != 0.0).then(|| self.predictions(&xs)).flatten()
+            };
+            let (pp, pm) = (side(up), side(-down));
+            let blocked = [up > 0.0 && pp.is_none(), down > 0.0 && pm.is_none()];
+            let (up, down) = (
+                if pp.is_some() { up } else { 0.0 },
+                if pm.is_some() { down } else { 0.0 },
+            );
             if up == 0.0 && down == 0.0 {
-                return Some(vec![0.0; m]);
+                return (vec![0.0; m], blocked);
             }
-            xp[j] += up;
-            xm[j] -= down;
-            let pp = if up > 0.0 {
-                self.predictions(&xp)?
-            } else {
-                p0.to_vec()
-            };
-            let pm = if down > 0.0 {
-                self.predictions(&xm)?
-            } else {
-                p0.to_vec()
-            };
-            Some(
-                pp.iter()
-                    .zip(&pm)
-                    .map(|(a, b)| (a - b) / (up + down))
-                    .collect(),
-            )
+            let (pp, pm) = (pp.as_deref().unwrap_or(p0), pm.as_deref().unwrap_or(p0));
+            let col = pp
+                .iter()
+                .zip(pm)
+                .map(|(a, b)| (a - b) / (up + down))
+                .collect();
+            (col, blocked)
         };
         // one column per item; `threads` is at least 1 (0 would mean all cores)
         let columns: Vec<usize> = (0..np).collect();
         let cols = ctr_formats::parallel::map(&columns, self.threads.max(1), |&j| column(j));
         let mut jac = DMatrix::zeros(m, np);
-        for (j, c) in cols.into_iter().enumerate() {
-            let c = c?;
+        let mut blocked = Vec::with_capacity(np);
+        for (j, (c, b)) in cols.into_iter().enumerate() {
             jac.set_column(j, &DVector::from_vec(c));
+            blocked.push(b);
         }
-        Some(jac)
+        (jac, blocked)
     }
 
     /// Levenberg-Marquardt from `x0` (clamped to the bounds) for at most `max_iter`
@@ -341,13 +353,22 @@ impl Problem<'_> {
                 x,
                 cost,
                 gave_up: false,
+                stuck: false,
             });
         }
         let mut lambda: f64 = 1e-3;
+        let (mut steps, mut stuck) = (0, false);
         for _ in 0..max_iter {
-            let Some(jac) = self.jacobian(&x, &p) else {
-                break;
-            };
+            let (jac, blocked) = self.jacobian_and_blocked(&x, &p);
+            // a side that cannot be simulated is a bound of this iteration's steps
+            let step_bounds: Vec<(f64, f64)> = bounds
+                .iter()
+                .zip(&blocked)
+                .zip(&x)
+                .map(|(((lo, hi), [up, down]), &xj)| {
+                    (if *down { xj } else { *lo }, if *up { xj } else { *hi })
+                })
+                .collect();
             // weighted normal equations
             let mut h = DMatrix::<f64>::zeros(np, np);
             let mut g = DVector::<f64>::zeros(np);
@@ -382,6 +403,7 @@ impl Problem<'_> {
                         x,
                         cost,
                         gave_up: true,
+                        stuck: false,
                     });
                 }
             }
@@ -391,7 +413,7 @@ impl Problem<'_> {
                 for j in 0..np {
                     a[(j, j)] += lambda * h[(j, j)].max(1e-9 * dmax);
                 }
-                let Some(step) = solve_step(&a, &g, &x, &bounds) else {
+                let Some(step) = solve_step(&a, &g, &x, &step_bounds) else {
                     lambda *= 10.0;
                     continue;
                 };
@@ -412,12 +434,14 @@ impl Problem<'_> {
                         w = wn;
                         lambda = (lambda / 3.0).max(1e-9);
                         improved = !(rel < 1e-7 || small);
+                        steps += 1;
                         break;
                     }
                 }
                 lambda *= 10.0;
             }
             if !improved {
+                stuck = steps == 0 && projected_gain(&h, &g, dmax) > STUCK_GAIN * cost;
                 break;
             }
         }
@@ -425,6 +449,7 @@ impl Problem<'_> {
             x,
             cost,
             gave_up: false,
+            stuck,
         })
     }
 }

@@ -65,7 +65,7 @@ impl Found {
     /// Takes `m` (whose error vectors are `e`) as the model found, and reads every
     /// finding's parameters and words again from it (a joint refit moves them all).
     pub(crate) fn take(&mut self, start: &Start, m: ModelSpec, e: Vec<RowError>) {
-        self.fig = figures(&e, &start.held);
+        self.fig = figures(start.rec, &e, &start.held);
         self.e = e;
         for f in &mut self.findings {
             f.parameters = parameters(f.effect, &m);

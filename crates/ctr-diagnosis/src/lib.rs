@@ -85,9 +85,11 @@ mod evaluate;
 mod finish;
 mod fit;
 mod found;
+mod grade;
 pub mod locate;
 mod options;
 mod paired;
+mod predictive;
 mod quantiles;
 mod report;
 mod residual;
@@ -105,6 +107,7 @@ pub use candidates::EffectId;
 pub use diagnose::diagnose;
 pub use empirical::hybrid::{FOLDS, MAX_TERMS};
 pub use error::DiagnoseError;
+pub use grade::{absent_value, Grade};
 pub use evaluate::evaluate;
 pub use locate::stability::{
     checked_warn_margin, near_snap_words, MarginRange, Marks, Stability, ROWS_AFTER_A_SNAP,
@@ -114,7 +117,7 @@ pub use options::{Checks, Options};
 pub use report::html::{escape_html, Page};
 pub use report::plots::Plot;
 pub use report::{
-    fitted_file, Alternative, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
+    fitted_file, Alternative, AngularFigures, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
     Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
 };
 pub use search::MIN_HELDOUT_GAIN;

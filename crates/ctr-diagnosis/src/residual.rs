@@ -7,10 +7,12 @@
 //! zeros when the recording's angular columns are not weighted). This is the one place
 //! the angular columns enter: the figures, the noise comparison, the outliers and the
 //! fits ([`crate::fit::Problem`], which takes its angular rows from [`angular_errors`])
-//! all see the same residual. Without angular columns every figure is the position's
-//! alone, bit for bit.
+//! all see the same residual, and they decide on it. What a user reads keeps the units
+//! apart ([`figures`]): the tip positions in mm, the tip angles in degrees, and the
+//! weighted whole, the fits' basis, labelled as such. Without angular columns every
+//! figure is the position's alone, bit for bit.
 
-use crate::report::Figures;
+use crate::report::{AngularFigures, Figures};
 use crate::start::angular;
 use ctr_analysis::simulate::Prediction;
 use ctr_formats::Recording;
@@ -89,33 +91,85 @@ pub(crate) fn size2(v: &RowError) -> f64 {
     v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + (v[3] * v[3] + v[4] * v[4] + v[5] * v[5])
 }
 
-/// RMS and largest error over the fit rows, RMS over the held-out rows (`held`).
-pub(crate) fn figures(e: &[RowError], held: &[bool]) -> Figures {
-    let (mut sf, mut nf, mut sh, mut nh, mut max) = (0.0, 0usize, 0.0, 0usize, 0.0f64);
-    for (v, h) in e.iter().zip(held) {
-        let d2 = size2(v);
-        if *h {
-            sh += d2;
-            nh += 1;
-        } else {
-            sf += d2;
-            nf += 1;
-            max = max.max(d2.sqrt());
+/// The figures of error vectors `e` of `rec`'s rows on the split `held`: RMS and largest
+/// over the fit rows, RMS over the held-out rows, of the tip positions in mm and, when
+/// `rec` weighs angular columns, of the tip angles in degrees and of the whole weighted
+/// error (the fits' basis) beside them.
+pub(crate) fn figures(rec: &Recording, e: &[RowError], held: &[bool]) -> Figures {
+    let positions = Sums::of(e, held, |v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    let angular = rec.angular.map(|w| {
+        let deg2 = (1.0 / w.mm_per_rad()).to_degrees().powi(2);
+        let angles = Sums::of(e, held, |v| deg2 * (v[3] * v[3] + v[4] * v[4] + v[5] * v[5]));
+        let weighted = Sums::of(e, held, size2);
+        AngularFigures {
+            rms_deg: angles.rms(),
+            max_deg: angles.max,
+            heldout_rms_deg: angles.heldout_rms(),
+            weighted_rms_mm_eq: weighted.rms(),
+            weighted_heldout_rms_mm_eq: weighted.heldout_rms(),
         }
-    }
+    });
     Figures {
-        rms_mm: (sf / nf.max(1) as f64).sqrt(),
-        max_mm: max,
-        heldout_rms_mm: (sh / nh.max(1) as f64).sqrt(),
+        rms_mm: positions.rms(),
+        max_mm: positions.max,
+        heldout_rms_mm: positions.heldout_rms(),
+        angular,
+    }
+}
+
+/// Sums of a row's squared size over the fit and the held-out rows.
+struct Sums {
+    fit: f64,
+    fit_rows: usize,
+    held: f64,
+    held_rows: usize,
+    /// The largest size over the fit rows.
+    max: f64,
+}
+
+impl Sums {
+    fn of(e: &[RowError], held: &[bool], size2: impl Fn(&RowError) -> f64) -> Self {
+        let mut s = Sums {
+            fit: 0.0,
+            fit_rows: 0,
+            held: 0.0,
+            held_rows: 0,
+            max: 0.0,
+        };
+        for (v, h) in e.iter().zip(held) {
+            let d2 = size2(v);
+            if *h {
+                s.held += d2;
+                s.held_rows += 1;
+            } else {
+                s.fit += d2;
+                s.fit_rows += 1;
+                s.max = s.max.max(d2.sqrt());
+            }
+        }
+        s
+    }
+
+    fn rms(&self) -> f64 {
+        (self.fit / self.fit_rows.max(1) as f64).sqrt()
+    }
+
+    fn heldout_rms(&self) -> f64 {
+        (self.held / self.held_rows.max(1) as f64).sqrt()
     }
 }
 
 /// Figures without the outlier rows.
-pub(crate) fn inlier_figures(e: &[RowError], held: &[bool], outliers: &[usize]) -> Figures {
+pub(crate) fn inlier_figures(
+    rec: &Recording,
+    e: &[RowError],
+    held: &[bool],
+    outliers: &[usize],
+) -> Figures {
     let keep: Vec<usize> = (0..e.len())
         .filter(|r| outliers.binary_search(r).is_err())
         .collect();
     let e: Vec<RowError> = keep.iter().map(|&r| e[r]).collect();
     let held: Vec<bool> = keep.iter().map(|&r| held[r]).collect();
-    figures(&e, &held)
+    figures(rec, &e, &held)
 }

@@ -52,8 +52,8 @@ impl Verdict {
         let (empirical, correction, left) = hybrid::fit(rec, e, &start.held, start.huber_mm());
         let (outliers, outlier_threshold_mm) = outlier_rows(rec, &left);
         let stability = Stability::new(rec, start.warn_margin, &start.margin0, margin, &outliers);
-        let inliers = inlier_figures(e, &start.held, &outliers);
-        let explained = inliers.heldout_rms_mm <= NOISE_TOLERANCE * noise.rms_mm;
+        let inliers = inlier_figures(rec, e, &start.held, &outliers);
+        let explained = inliers.heldout_score() <= NOISE_TOLERANCE * noise.weighted_rms();
         Verdict {
             noise,
             empirical,

@@ -47,7 +47,7 @@ pub(crate) fn fit(
     let terms = choose_size(&fields, e, &w);
     let chosen = empirical::pursue(&fields, e, &w, terms);
     let left = with_angles(&empirical::subtract(&fields, &chosen, e), e_row);
-    let fig = figures(&left, held);
+    let fig = figures(rec, &left, held);
     let mut dominant: Vec<Term> = chosen
         .iter()
         .map(|&(i, c)| {

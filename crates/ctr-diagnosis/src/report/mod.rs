@@ -7,6 +7,7 @@ pub(crate) mod plots;
 pub(crate) mod prose;
 
 use crate::candidates::EffectId;
+use crate::grade::Grade;
 use crate::locate::stability::{MarginRange, Stability};
 use crate::locate::Statement;
 use ctr_analysis::model::ModelSpec;
@@ -14,15 +15,55 @@ use ctr_formats::{Correction, RobotSpec};
 use numbers::sig;
 use serde::Serialize;
 
-/// Error figures of a model on a recording, mm.
+/// Error figures of a model on a recording: of the tip positions in mm, and of the tip
+/// angles in degrees beside them when the recording has angular columns.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Figures {
-    /// RMS tip error over the fit rows.
+    /// RMS tip position error over the fit rows, mm.
     pub rms_mm: f64,
-    /// Largest tip error over the fit rows.
+    /// Largest tip position error over the fit rows, mm.
     pub max_mm: f64,
-    /// RMS tip error over the held-out rows.
+    /// RMS tip position error over the held-out rows, mm.
     pub heldout_rms_mm: f64,
+    /// The tip angles' figures and the weighted whole's (only for a recording whose
+    /// angular columns enter the residual; written beside the keys above).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub angular: Option<AngularFigures>,
+}
+
+/// The angular part of [`Figures`]: the tip angle's error (the small rotation from the
+/// measured to the predicted orientation or tangent) in degrees, and the whole row's
+/// error as the fits weigh it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct AngularFigures {
+    /// RMS tip angle error over the fit rows, degrees.
+    pub rms_deg: f64,
+    /// Largest tip angle error over the fit rows, degrees.
+    pub max_deg: f64,
+    /// RMS tip angle error over the held-out rows, degrees.
+    pub heldout_rms_deg: f64,
+    /// RMS over the fit rows of the whole weighted error, the fits' cost basis: the
+    /// position in mm and the angles at `noise.angular.mm_per_deg`, mm-equivalent (not a
+    /// distance a tracker measures).
+    pub weighted_rms_mm_eq: f64,
+    /// The same over the held-out rows: what the search and the checks compare.
+    pub weighted_heldout_rms_mm_eq: f64,
+}
+
+impl Noise {
+    /// What the held-out RMS is compared with: [`Figures::heldout_score`]'s basis.
+    pub(crate) fn weighted_rms(&self) -> f64 {
+        self.weighted_rms
+    }
+}
+
+impl Figures {
+    /// The held-out RMS the search, the checks and the verdict decide on: the weighted
+    /// whole's with angular columns, the positions' without.
+    pub(crate) fn heldout_score(&self) -> f64 {
+        self.angular
+            .map_or(self.heldout_rms_mm, |a| a.weighted_heldout_rms_mm_eq)
+    }
 }
 
 /// One term of the empirical correction, as the report lists it.
@@ -60,6 +101,11 @@ pub struct Empirical {
 pub struct Finding {
     /// The contract's id.
     pub effect: EffectId,
+    /// How sure the report is of it (`crate::grade`): `established` physics the data
+    /// show, or `predictive`: it helps prediction, its form is not established.
+    pub grade: Grade,
+    /// Why this grade, in words.
+    pub grade_reason: String,
     /// What the model leaves out, in words, with the fitted values.
     pub explanation: String,
     /// Where the effect shows: the runs and the pattern of the error it removes.
@@ -67,17 +113,22 @@ pub struct Finding {
     pub where_: String,
     /// The fitted parameters, as the robot file writes them.
     pub parameters: serde_json::Value,
-    /// Fit-row RMS before adding it, mm.
+    /// Fit-row RMS of the tip positions without it, mm: the final model with this effect
+    /// taken out, the others as fitted (what the fitted model loses without it).
     pub rms_mm_before: f64,
-    /// Fit-row RMS after, mm.
+    /// Fit-row RMS with it, mm: the final model's (`final.rms_mm`).
     pub rms_mm_after: f64,
-    /// Held-out RMS before, mm.
+    /// Held-out RMS without it, mm (as `rms_mm_before`).
     pub heldout_rms_mm_before: f64,
-    /// Held-out RMS after, mm.
+    /// Held-out RMS with it, mm: the final model's.
     pub heldout_rms_mm_after: f64,
-    /// Held-out RMS of the final model with this effect replaced by the generic
-    /// empirical correction of as many parameters, mm (NaN for torsion): the yardstick
-    /// it beat (see `verify`).
+    /// Held-out RMS of the tip angles without and with it, degrees (only with angular
+    /// columns in the residual).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heldout_rms_deg: Option<[f64; 2]>,
+    /// Held-out RMS of the tip positions of the final model with this effect replaced by
+    /// the generic empirical correction of as many parameters, mm (NaN for torsion): the
+    /// yardstick of its first check (see `verify`).
     pub empirical_heldout_rms_mm: f64,
     /// 95 % intervals of `parameters`: the same keys and shapes, each number replaced
     /// by `[lo, hi]` in its unit (`[null, null]` where the data set no bound); with
@@ -96,8 +147,8 @@ pub struct Finding {
 pub struct Alternative {
     /// The contract's id.
     pub effect: EffectId,
-    /// Held-out RMS with it in the finding's place (fitted with the findings before),
-    /// mm.
+    /// Held-out RMS of the tip positions with it in the finding's place (fitted with
+    /// the findings before, when the finding was added), mm.
     pub heldout_rms_mm: f64,
 }
 
@@ -145,9 +196,14 @@ pub struct SuggestedRun {
 pub struct Noise {
     /// Estimated standard deviation per axis, mm.
     pub sigma_mm_per_axis: f64,
-    /// RMS of a row's noise, mm: `sqrt(3) sigma` of the 3-D position, with the weighted
-    /// angular components' beside it when the recording has some (see `angular`).
+    /// RMS of a row's position noise, mm: `sqrt(3) sigma` (the angular columns' is
+    /// `angular.rms_deg`).
     pub rms_mm: f64,
+    /// RMS of a row's whole weighted noise, positions and angles (mm-equivalent, the
+    /// fits' basis: what the verdict compares [`AngularFigures::weighted_heldout_rms_mm_eq`]
+    /// with); `rms_mm` without angular columns.
+    #[serde(skip)]
+    pub weighted_rms: f64,
     /// How it was estimated.
     pub method: String,
     /// The angular columns of the recording, when it has some: their noise and weight.
@@ -165,6 +221,8 @@ pub struct AngularNoise {
     pub components: usize,
     /// Estimated standard deviation per angular component, degrees.
     pub sigma_deg: f64,
+    /// RMS of a row's angular noise, degrees: `sqrt(components) sigma_deg`.
+    pub rms_deg: f64,
     /// mm of tip error one degree of angular error counts as (position noise over
     /// angular noise).
     pub mm_per_deg: f64,
@@ -259,6 +317,59 @@ pub struct Report {
     pub stability: Stability,
 }
 
+/// A finding in the summary: what it is, where it shows, its gain on the held-out rows
+/// (tip positions, and angles when measured), its intervals, its grade's reason when
+/// predictive, and the effects that explain its residual as well.
+fn finding_words(f: &Finding) -> String {
+    let mut s = format!(
+        "{}\n  where: {}\n  without it, the fitted model's held-out RMS would be {:.3} mm \
+         instead of {:.3} mm{} (fit rows {:.3} instead of {:.3} mm)\n",
+        f.explanation,
+        f.where_,
+        f.heldout_rms_mm_before,
+        f.heldout_rms_mm_after,
+        f.heldout_rms_deg
+            .map_or(String::new(), |[a, b]| format!("; tip angle {a:.2} instead of {b:.2} deg")),
+        f.rms_mm_before,
+        f.rms_mm_after
+    );
+    let ci = intervals(&f.parameters, &f.ci95);
+    if !ci.is_empty() {
+        s += &format!("  95 % intervals: {ci}\n");
+    }
+    if f.grade == Grade::Predictive {
+        s += &format!("  why predictive: {}\n", f.grade_reason);
+    }
+    if !f.equally_explained_by.is_empty() {
+        let others: Vec<String> = f
+            .equally_explained_by
+            .iter()
+            .map(|a| format!("{} ({:.3} mm held out)", a.effect.as_str(), a.heldout_rms_mm))
+            .collect();
+        s += &format!(
+            "  equally: {} explain{} this residual as well as {}: the data do not tell them \
+             apart (it is named only because the search took it first); a run that moves \
+             them differently, or knowledge of the rig, decides\n",
+            others.join(", "),
+            if others.len() == 1 { "s" } else { "" },
+            f.effect.as_str(),
+        );
+    }
+    s
+}
+
+/// Held-out figures in words: `0.350 mm` of tip position, with `, 1.20 deg` of tip
+/// angle beside them when the recording's angular columns enter the residual.
+pub(crate) fn held_words(fig: &Figures) -> String {
+    match fig.angular {
+        Some(a) => format!(
+            "{:.3} mm, {:.2} deg",
+            fig.heldout_rms_mm, a.heldout_rms_deg
+        ),
+        None => format!("{:.3} mm", fig.heldout_rms_mm),
+    }
+}
+
 /// How the note of a finding taken out after the search starts.
 pub(crate) const REMOVED: &str = "removed after the search: ";
 
@@ -313,21 +424,60 @@ pub struct Diagnosis {
 }
 
 impl Report {
+    /// The findings by grade in one line each, established first (what the summary
+    /// leads with); empty without findings.
+    fn graded_words(&self) -> String {
+        let of = |g: Grade| -> Vec<&str> {
+            self.findings
+                .iter()
+                .filter(|f| f.grade == g)
+                .map(|f| f.effect.as_str())
+                .collect()
+        };
+        let (established, predictive) = (of(Grade::Established), of(Grade::Predictive));
+        let mut s = String::new();
+        if !established.is_empty() {
+            s += &format!("Established: {}.\n", established.join(", "));
+        }
+        if !predictive.is_empty() {
+            s += &format!(
+                "Predictive, not established (kept for prediction): {}.\n",
+                predictive.join(", ")
+            );
+        }
+        s
+    }
+
     /// The plain-language summary (`ctr-cli diagnose` prints it; `ctr_py` returns it):
     /// the error, where it sits, each finding with its gain, and what is left.
     pub fn summary(&self, recording: &str) -> String {
         let mut s = format!(
-            "{recording}: explained: {}: after fitting, {:.3} mm RMS is left on held-out rows \
-             (all rows counted) against {:.3} mm of noise estimated from the data.\n",
+            "{recording}: explained: {}: after fitting, {:.3} mm RMS of tip position is left \
+             on held-out rows (all rows counted) against {:.3} mm of noise estimated from the \
+             data{}.\n",
             if self.explained { "yes" } else { "no" },
             self.final_.heldout_rms_mm,
-            self.noise.rms_mm
+            self.noise.rms_mm,
+            match (&self.final_.angular, &self.noise.angular) {
+                (Some(a), Some(n)) => format!(
+                    "; tip angle {:.2} deg against {:.2} deg of noise",
+                    a.heldout_rms_deg, n.rms_deg
+                ),
+                _ => String::new(),
+            }
         );
         s += &format!(
             "The model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out rows, \
-             largest {:.3} mm).\n",
-            self.baseline.rms_mm, self.baseline.heldout_rms_mm, self.baseline.max_mm
+             largest {:.3} mm){}.\n",
+            self.baseline.rms_mm,
+            self.baseline.heldout_rms_mm,
+            self.baseline.max_mm,
+            self.baseline.angular.map_or(String::new(), |a| format!(
+                " and its angle by {:.2} deg RMS ({:.2} deg on held-out rows)",
+                a.rms_deg, a.heldout_rms_deg
+            ))
         );
+        s += &self.graded_words();
         let patterns: Vec<&str> = self
             .located
             .iter()
@@ -341,40 +491,20 @@ impl Report {
         if self.findings.is_empty() {
             s += "No left-out effect explains part of it.\n";
         }
-        for f in &self.findings {
-            s += &format!(
-                "{}\n  where: {}\n  held-out RMS {:.3} -> {:.3} mm (fit rows {:.3} -> {:.3} mm)\n",
-                f.explanation,
-                f.where_,
-                f.heldout_rms_mm_before,
-                f.heldout_rms_mm_after,
-                f.rms_mm_before,
-                f.rms_mm_after
-            );
-            let ci = intervals(&f.parameters, &f.ci95);
-            if !ci.is_empty() {
-                s += &format!("  95 % intervals: {ci}\n");
+        for grade in [Grade::Established, Grade::Predictive] {
+            let mut of_grade = self.findings.iter().filter(|f| f.grade == grade).peekable();
+            if of_grade.peek().is_some() {
+                s += match grade {
+                    Grade::Established => "Established (physics the data show):\n",
+                    Grade::Predictive => {
+                        "Predictive (each helps prediction on held-out rows, but its form is \
+                         not established: it may stand in for something outside the \
+                         vocabulary):\n"
+                    }
+                };
             }
-            if !f.equally_explained_by.is_empty() {
-                let others: Vec<String> = f
-                    .equally_explained_by
-                    .iter()
-                    .map(|a| {
-                        format!(
-                            "{} ({:.3} mm held out)",
-                            a.effect.as_str(),
-                            a.heldout_rms_mm
-                        )
-                    })
-                    .collect();
-                s += &format!(
-                    "  equally: {} explain{} this residual as well as {}: the data do not \
-                     tell them apart (it is named only because the search took it first); \
-                     a run that moves them differently, or knowledge of the rig, decides\n",
-                    others.join(", "),
-                    if others.len() == 1 { "s" } else { "" },
-                    f.effect.as_str(),
-                );
+            for f in of_grade {
+                s += &finding_words(f);
             }
         }
         for line in &self.identifiability {
@@ -394,8 +524,14 @@ impl Report {
             );
         }
         s += &format!(
-            "After fitting: {:.3} mm RMS, {:.3} mm held out. The {}.\n",
-            self.final_.rms_mm, self.final_.heldout_rms_mm, self.unexplained
+            "After fitting: {:.3} mm RMS, {:.3} mm held out{}. The {}.\n",
+            self.final_.rms_mm,
+            self.final_.heldout_rms_mm,
+            self.final_.angular.map_or(String::new(), |a| format!(
+                " (tip angle {:.2} deg, {:.2} deg held out)",
+                a.rms_deg, a.heldout_rms_deg
+            )),
+            self.unexplained
         );
         if let Some(line) = self.stability.words() {
             s += &line;

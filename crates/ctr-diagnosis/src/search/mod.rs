@@ -17,6 +17,7 @@ use crate::candidates::EffectId;
 use crate::error::DiagnoseError;
 use crate::fit::MAX_FIT_ITERATIONS;
 use crate::found::{simulate, Found};
+use crate::grade::Grade;
 use crate::locate;
 use crate::paired::clearly_lower;
 use crate::report::prose::{explain, parameters};
@@ -87,6 +88,9 @@ fn add(start: &Start, found: &mut Found, best: Passing, outcome: Outcome) {
     let before = found.fig;
     found.findings.push(Finding {
         effect: c,
+        // graded by the checks (`crate::verify::settle`)
+        grade: Grade::Established,
+        grade_reason: String::new(),
         explanation: explain(c, &m),
         where_,
         parameters: parameters(c, &m),
@@ -94,6 +98,7 @@ fn add(start: &Start, found: &mut Found, best: Passing, outcome: Outcome) {
         rms_mm_after: f64::NAN,
         heldout_rms_mm_before: before.heldout_rms_mm,
         heldout_rms_mm_after: f64::NAN,
+        heldout_rms_deg: None,
         empirical_heldout_rms_mm: f64::NAN,
         ci95: serde_json::Value::Null,
         equally_explained_by: equally,
@@ -140,7 +145,7 @@ fn equally(best: &Passing, passing: &[Passing], held: &[bool]) -> Vec<Alternativ
         .iter()
         .filter(|p| {
             p.effect != best.effect
-                && p.fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN) <= best.fig.heldout_rms_mm
+                && p.fig.heldout_score() * (1.0 - MIN_HELDOUT_GAIN) <= best.fig.heldout_score()
                 && !clearly_lower(&best.e, &p.e, held)
         })
         .map(|p| Alternative {

@@ -46,7 +46,7 @@ impl Outcome {
         self.passing
             .iter()
             .fold(None, |best: Option<&Passing>, p| match best {
-                Some(b) if b.fig.heldout_rms_mm <= p.fig.heldout_rms_mm => Some(b),
+                Some(b) if b.fig.heldout_score() <= p.fig.heldout_score() => Some(b),
                 _ => Some(p),
             })
     }
@@ -194,14 +194,14 @@ fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial,
     let Some((fitted, m, e)) = fitted else {
         return (not_fitted(round, c, CANNOT_SIMULATE.into()), None);
     };
-    let fig = figures(&e, &start.held);
+    let fig = figures(start.rec, &e, &start.held);
     let bic = n_obs * (fitted.cost / found.cost).ln() + k as f64 * n_obs.ln();
     let note = if fitted.gave_up {
         "not added: the information criterion rejects it (its fit stopped where the gain \
          left, linearised, could not pay for its parameters)"
     } else if bic >= 0.0 {
         "not added: the information criterion rejects it"
-    } else if fig.heldout_rms_mm >= found.fig.heldout_rms_mm * (1.0 - MIN_HELDOUT_GAIN) {
+    } else if fig.heldout_score() >= found.fig.heldout_score() * (1.0 - MIN_HELDOUT_GAIN) {
         "not added: no gain on held-out rows"
     } else {
         ""
@@ -244,7 +244,7 @@ fn judged_on_screen(
             let Some(e) = e else {
                 return not_fitted(round, r.effect, CANNOT_SIMULATE.into());
             };
-            let fig = figures(&e, &start.held);
+            let fig = figures(start.rec, &e, &start.held);
             Trial {
                 round,
                 effect: r.effect,

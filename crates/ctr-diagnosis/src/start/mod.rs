@@ -87,7 +87,7 @@ impl<'a> Start<'a> {
         let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
         Ok(Start {
             rec,
-            baseline: figures(&e0, &held),
+            baseline: figures(rec, &e0, &held),
             noise: estimate_noise(rec, &positions(&e0)),
             located: locate::locate(rec, &positions(&e0), &fit_mask, &base.p),
             held,

@@ -16,10 +16,11 @@ pub const NOISE_TOLERANCE: f64 = 1.15;
 pub const OUTLIER_SIGMAS: f64 = 6.0;
 
 /// Noise per axis from the second differences of the position errors of `e` along
-/// each run. Its `rms_mm` is that of a row's whole error: `sqrt(3) sigma`, and with
-/// weighted angular columns their `k` components' noise beside it,
-/// `sqrt(3 sigma^2 + k sigma_w^2)` (`sigma_w` the position noise they were weighted
-/// against: `crate::start::angular`).
+/// each run. Its `rms_mm` is that of a row's position: `sqrt(3) sigma`; weighted
+/// angular columns have their own beside it (`angular`), and the whole row's,
+/// `sqrt(3 sigma^2 + k sigma_w^2)` with `k` angular components (`sigma_w` the position
+/// noise they were weighted against: `crate::start::angular`), is
+/// [`Noise::weighted_rms`].
 pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
     let mut d2 = Vec::new();
     for run in &rec.runs {
@@ -30,8 +31,9 @@ pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
         }
     }
     let sigma = sigma_of_second_differences(&d2);
-    let rms_mm = match rec.angular {
-        None => 3f64.sqrt() * sigma,
+    let rms_mm = 3f64.sqrt() * sigma;
+    let weighted_rms = match rec.angular {
+        None => rms_mm,
         Some(w) => {
             (3.0 * sigma * sigma + (components(rec) - 3) as f64 * w.sigma_mm * w.sigma_mm).sqrt()
         }
@@ -39,6 +41,7 @@ pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
     Noise {
         sigma_mm_per_axis: sigma,
         rms_mm,
+        weighted_rms,
         method: format!(
             "median absolute deviation of the residual's second differences along the runs \
              ({} triples of rows)",
@@ -130,13 +133,15 @@ fn angular_report(rec: &Recording, triples: usize) -> Option<AngularNoise> {
             columns: columns.names().into(),
             components: columns.components(),
             sigma_deg: w.sigma_rad.to_degrees(),
+            rms_deg: (columns.components() as f64).sqrt() * w.sigma_rad.to_degrees(),
             mm_per_deg: w.mm_per_rad().to_radians(),
             method: format!(
                 "median absolute deviation of the user model's angular error's second \
                  differences along the runs ({triples} triples of rows{}); each angular \
                  component enters the residual as mm_per_deg x its error in degrees (the \
-                 position noise over the angular noise), so the figures in mm are of the \
-                 whole row's error, positions and angles whitened alike",
+                 position noise over the angular noise): the fits weigh positions and angles \
+                 whitened alike, and the report's figures keep them apart (mm of tip \
+                 position, degrees of tip angle)",
                 match columns {
                     AngularColumns::Tangent => ", in the plane normal to the measured tangent",
                     AngularColumns::Orientation => "",
@@ -147,6 +152,7 @@ fn angular_report(rec: &Recording, triples: usize) -> Option<AngularNoise> {
             columns: columns.names().into(),
             components: 0,
             sigma_deg: f64::NAN,
+            rms_deg: f64::NAN,
             mm_per_deg: 0.0,
             method: "not used: their noise (or the positions') cannot be estimated from the \
                      data (too few rows along the runs, or none at all)"

@@ -5,7 +5,8 @@ use super::{Context, Failure, MIN_GAIN_OVER_EMPIRICAL};
 use crate::candidates::EffectId;
 use crate::empirical::{self, Basis, Field};
 use crate::fit::Problem;
-use crate::residual::{figures, positions, tips, with_angles, RowError};
+use crate::report::Figures;
+use crate::residual::{positions, tips, with_angles, RowError};
 use ctr_analysis::model::ModelSpec;
 
 impl Context<'_> {
@@ -17,11 +18,13 @@ impl Context<'_> {
         e_without: &[RowError],
         c: EffectId,
     ) -> Option<Failure> {
-        let (feature, h_const, h_prop) = self.proportional(m, e_without, c)?;
-        (h_prop < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_const).then_some(Failure::Varying {
+        let (feature, constant, proportional) = self.proportional(m, e_without, c)?;
+        let clearly_better = proportional.heldout_score()
+            < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * constant.heldout_score();
+        clearly_better.then_some(Failure::Varying {
             feature,
-            constant_heldout_rms_mm: h_const,
-            heldout_rms_mm: h_prop,
+            constant,
+            proportional,
         })
     }
 
@@ -60,7 +63,7 @@ impl Context<'_> {
         m: &ModelSpec,
         e_row: &[RowError],
         c: EffectId,
-    ) -> Option<(String, f64, f64)> {
+    ) -> Option<(String, Figures, Figures)> {
         // fitted to the positions (the tip directions `J_c`); the angular errors stay
         let e = &positions(e_row);
         let rows = self.rec.rows.len();
@@ -83,7 +86,7 @@ impl Context<'_> {
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         let heldout = |fields: &[Field], terms: &[(usize, f64)]| {
             let left = empirical::subtract(fields, terms, e);
-            figures(&with_angles(&left, e_row), self.held).heldout_rms_mm
+            self.figures(&with_angles(&left, e_row))
         };
         let all: Vec<usize> = (0..k).collect();
         let h_const = heldout(&constant, &empirical::coefficients(&constant, &all, e, &w));

@@ -6,13 +6,14 @@ use crate::candidates::EffectId;
 use crate::empirical::hybrid;
 use crate::empirical::{self, Field};
 use crate::paired::clearly_lower;
-use crate::residual::{figures, positions, tips, with_angles, RowError};
+use crate::report::Figures;
+use crate::residual::{positions, tips, with_angles, RowError};
 use crate::start::noise::NOISE_TOLERANCE;
 use ctr_analysis::model::ModelSpec;
 use nalgebra::{DMatrix, DVector};
 
 impl Context<'_> {
-    /// Check 1: the held-out RMS of the generic correction in `c`'s place (`e_without`:
+    /// Check 1: the figures of the generic correction in `c`'s place (`e_without`:
     /// `m`'s errors with `c` taken out), and the failure when it does as well as `c`
     /// (`e`: `m`'s errors; `at_noise`: `m` leaves only noise on the held-out rows).
     pub(super) fn against_generic(
@@ -22,9 +23,9 @@ impl Context<'_> {
         e_without: &[RowError],
         c: EffectId,
         at_noise: bool,
-    ) -> (f64, Option<Failure>) {
+    ) -> (Figures, Option<Failure>) {
         let k = c.n_params(m.robot.n_tubes());
-        let h = figures(e, self.held).heldout_rms_mm;
+        let h = self.figures(e).heldout_score();
         // both sides get the generic term that what `M` leaves asks for (size by
         // cross-validation), the side without `c` k terms more: `c` must explain
         // something a generic term cannot, not just something else that is left
@@ -32,7 +33,7 @@ impl Context<'_> {
         let h_with = if size == 0 {
             h
         } else {
-            self.empirical_heldout(e, size)
+            self.empirical_heldout(e, size).heldout_score()
         };
         // where `M` leaves only noise, the correction in `c`'s place may also be linear
         // in the tip position (what a tracker's scale or calibration error makes, and
@@ -47,37 +48,35 @@ impl Context<'_> {
         let tip = directions
             .as_ref()
             .is_some_and(|d| !affine_in_tip(d, &tips(self.rec, e)));
-        let (h_emp, left_emp) = if tip {
+        let (fig_emp, left_emp) = if tip {
             let left = self.empirical_with_tip(e_without, k);
-            (figures(&left, self.held).heldout_rms_mm, Some(left))
+            (self.figures(&left), Some(left))
         } else {
             (self.empirical_heldout(e_without, size + k), None)
         };
+        let h_emp = fig_emp.heldout_score();
         // where the generic correction too leaves only noise, both explain the data and
         // clearly also means beyond chance
-        let both_at_noise = h_emp <= NOISE_TOLERANCE * self.noise_rms_mm;
+        let both_at_noise = h_emp <= NOISE_TOLERANCE * self.noise_rms;
         let beaten = h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp
             || (both_at_noise
                 && left_emp
                     .as_ref()
                     .is_some_and(|l| !clearly_lower(e, l, self.held)));
         let failure = (self.checks.beats_generic && (!at_noise || tip) && beaten).then_some(
-            Failure::Empirical {
-                heldout_rms_mm: h_emp,
-                tip,
-            },
+            Failure::Empirical { fig: fig_emp, tip },
         );
-        (h_emp, failure)
+        (fig_emp, failure)
     }
 
-    /// Held-out RMS of `e` after the best `k`-term generic correction in the joints
-    /// and time fitted to its positions (the angular errors stay).
-    fn empirical_heldout(&self, e_row: &[RowError], k: usize) -> f64 {
+    /// The figures of `e` after the best `k`-term generic correction in the joints and
+    /// time fitted to its positions (the angular errors stay).
+    fn empirical_heldout(&self, e_row: &[RowError], k: usize) -> Figures {
         let e = &positions(e_row);
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         let terms = empirical::pursue(&self.yardstick, e, &w, k);
         let left = empirical::subtract(&self.yardstick, &terms, e);
-        figures(&with_angles(&left, e_row), self.held).heldout_rms_mm
+        self.figures(&with_angles(&left, e_row))
     }
 
     /// What `e` leaves after the best `k`-term generic correction in the joints, time

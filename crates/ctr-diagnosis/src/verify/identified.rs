@@ -41,17 +41,36 @@ impl Context<'_> {
             .iter()
             .filter_map(|&c| {
                 let (statistic, threshold) = wald(&a, c)?;
-                (statistic <= threshold).then_some((
-                    c,
-                    Failure::NotIdentified {
-                        statistic,
-                        threshold,
-                    },
-                ))
+                if statistic <= threshold {
+                    Some((
+                        c,
+                        Failure::NotIdentified {
+                            statistic,
+                            threshold,
+                        },
+                    ))
+                } else {
+                    (!present_beyond_doubt(&a, c)).then_some((c, Failure::MaybeAbsent))
+                }
             })
             .collect();
         (failures, Some(a))
     }
+}
+
+/// Whether at least one of `c`'s parameters that has a "not there" value (its
+/// [`EffectId::absence_of`]) has a 95 % interval `x_j +/- t sd_j` that excludes its
+/// nominal, the user's model having no such effect; a parameter not identified alone
+/// excludes nothing.
+fn present_beyond_doubt(a: &Assessment, c: EffectId) -> bool {
+    let idx: Vec<usize> = (0..a.x.len()).filter(|&j| a.effects[j] == c).collect();
+    idx.iter().enumerate().any(|(i, &j)| {
+        let sd = a.cov[(j, j)].max(0.0).sqrt();
+        c.absence_of(i)
+            && !a.unidentified[j]
+            && sd.is_finite()
+            && (a.x[j] - a.nominal[j]).abs() > a.t * sd
+    })
 }
 
 /// The Wald test of `c`'s parameters against the nominal: `d^T Sigma_cc^+ d` (`d`

@@ -60,8 +60,9 @@ mod identified;
 use crate::candidates::EffectId;
 use crate::empirical::{Basis, Field};
 use crate::found::{simulate, Found};
+use crate::grade::Grade;
 use crate::options::Checks;
-use crate::report::{Trial, REMOVED};
+use crate::report::{held_words, Figures, Trial, REMOVED};
 use crate::residual::{errors, figures, RowError};
 use crate::start::noise::NOISE_TOLERANCE;
 use crate::start::Start;
@@ -89,19 +90,20 @@ pub(crate) struct Context<'a> {
     huber_mm: f64,
     /// Worker threads.
     threads: usize,
-    /// The noise estimate's RMS, mm.
-    noise_rms_mm: f64,
+    /// The noise estimate's RMS on the checks' basis
+    /// ([`Noise::weighted_rms`](crate::report::Noise)), mm(-equivalent).
+    noise_rms: f64,
     /// Which checks run.
     checks: Checks,
 }
 
-/// Why a finding failed its checks.
+/// A check a finding failed.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) enum Failure {
     /// A generic correction of as many parameters does as well.
     Empirical {
-        /// Its held-out RMS, mm.
-        heldout_rms_mm: f64,
+        /// Its figures.
+        fig: Figures,
         /// Whether the correction was also linear in the tip position (the yardstick
         /// where the model leaves only noise).
         tip: bool,
@@ -110,11 +112,14 @@ pub(crate) enum Failure {
     Varying {
         /// The feature they are proportional to (the first chosen).
         feature: String,
-        /// Held-out RMS of the constant parameters (linearised), mm.
-        constant_heldout_rms_mm: f64,
-        /// Held-out RMS of the proportional ones, mm.
-        heldout_rms_mm: f64,
+        /// Figures of the constant parameters (linearised).
+        constant: Figures,
+        /// Figures of the proportional ones.
+        proportional: Figures,
     },
+    /// Its parameters are told from the nominal together, but each one's 95 % interval
+    /// holds the value that means the effect is not there.
+    MaybeAbsent,
     /// The data cannot tell its parameters from the nominal.
     NotIdentified {
         /// The Wald statistic of its parameters against the nominal.
@@ -128,21 +133,28 @@ pub(crate) enum Failure {
 #[derive(Clone, Debug)]
 pub(crate) struct Checked {
     pub(crate) effect: EffectId,
-    /// Held-out RMS of the generic correction of the finding's size, the finding taken
-    /// out (NaN for torsion, which has no parameter), mm.
-    pub(crate) empirical_heldout_rms_mm: f64,
+    /// Figures of the generic correction of the finding's size in its place (none for
+    /// torsion, which has no parameter).
+    pub(crate) generic: Option<Figures>,
+    /// The first check it fails.
     pub(crate) failure: Option<Failure>,
 }
 
+/// Why an established finding is: the words of its grade.
+pub(crate) const PASSES_EVERY_CHECK: &str = "it passes every check: it beats a generic \
+    correction of its size, its parameters are constant rather than proportional to a \
+    feature of the rows, they are told from the nominal together, and at least one of \
+    their 95 % intervals excludes the value that means it is not there";
+
 impl<'a> Context<'a> {
     /// The checks of a diagnosis of `rec` split by `held`, with the fits' Huber
-    /// threshold, threads and the noise estimate's RMS (mm).
+    /// threshold, threads and the noise estimate's RMS on the checks' basis.
     pub(crate) fn new(
         rec: &'a Recording,
         held: &'a [bool],
         huber_mm: f64,
         threads: usize,
-        noise_rms_mm: f64,
+        noise_rms: f64,
         checks: Checks,
     ) -> Self {
         let fit: Vec<bool> = held.iter().map(|h| !h).collect();
@@ -154,7 +166,7 @@ impl<'a> Context<'a> {
             yardstick,
             huber_mm,
             threads,
-            noise_rms_mm,
+            noise_rms,
             checks,
         }
     }
@@ -166,12 +178,16 @@ impl<'a> Context<'a> {
             .map(|p| errors(self.rec, &p))
     }
 
+    fn figures(&self, e: &[RowError]) -> Figures {
+        figures(self.rec, e, self.held)
+    }
+
     /// Checks 1 and 2 of finding `c` of `m`, whose error vectors are `e` (check 3 is
     /// [`Context::identified`], on every finding together).
     pub(crate) fn check(&self, m: &ModelSpec, e: &[RowError], c: EffectId) -> Checked {
         let mut out = Checked {
             effect: c,
-            empirical_heldout_rms_mm: f64::NAN,
+            generic: None,
             failure: None,
         };
         if c.n_params(m.robot.n_tubes()) == 0 {
@@ -182,9 +198,9 @@ impl<'a> Context<'a> {
         let Some(e_without) = self.errors_of(&without) else {
             return out;
         };
-        let at_noise = figures(e, self.held).heldout_rms_mm <= NOISE_TOLERANCE * self.noise_rms_mm;
-        let (h_emp, failure) = self.against_generic(m, e, &e_without, c, at_noise);
-        out.empirical_heldout_rms_mm = h_emp;
+        let at_noise = self.figures(e).heldout_score() <= NOISE_TOLERANCE * self.noise_rms;
+        let (generic, failure) = self.against_generic(m, e, &e_without, c, at_noise);
+        out.generic = Some(generic);
         out.failure = failure;
         // 2. where the model leaves more than noise: constant parameters against
         // parameters proportional to a feature
@@ -195,53 +211,69 @@ impl<'a> Context<'a> {
     }
 }
 
-/// Every finding of `found` checked with the others in place; those that fail are taken
-/// out (their trials say why) and the rest refitted together, until all pass. Also the
-/// assessment check 3 judged the findings on, when the loop ends on it (the report's
+/// Every finding of `found` checked with the others in place: those that fail are taken
+/// out (their trials say why, and [`Removed`] keeps them for `crate::predictive`) and
+/// the rest refitted together, until all pass: the established findings. Also the
+/// assessment check 3 judged them on, when the loop ends on it (the report's
 /// intervals).
-pub(crate) fn until_all_pass(
+pub(crate) fn settle(
     start: &Start,
     mut found: Found,
     checks: Checks,
-) -> (Found, Option<Assessment>) {
+) -> (Found, Vec<Removed>, Option<Assessment>) {
     let ctx = Context::new(
         start.rec,
         &start.held,
         start.huber_mm(),
         start.threads,
-        start.noise.rms_mm,
+        start.noise.weighted_rms(),
         checks,
     );
     let last_round = found.tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
+    let mut removed = Vec::new();
     loop {
         let (checked, assessment) = ctx.check_all(start, &found);
         for ch in &checked {
             if let Some(f) = found.findings.iter_mut().find(|f| f.effect == ch.effect) {
-                f.empirical_heldout_rms_mm = ch.empirical_heldout_rms_mm;
+                f.empirical_heldout_rms_mm = ch.generic.map_or(f64::NAN, |g| g.heldout_rms_mm);
+                f.grade = Grade::Established;
+                f.grade_reason = PASSES_EVERY_CHECK.into();
             }
         }
-        let failed: Vec<&Checked> = checked.iter().filter(|c| c.failure.is_some()).collect();
+        let failed: Vec<(EffectId, String)> = checked
+            .iter()
+            .filter_map(|c| Some((c.effect, failure_words(c.failure.as_ref()?))))
+            .collect();
         if failed.is_empty() {
-            return (found, assessment);
+            return (found, removed, assessment);
         }
-        for ch in &failed {
+        for (c, why) in failed {
             found.tried.push(Trial {
                 round: last_round,
-                effect: ch.effect,
+                effect: c,
                 rms_mm: found.fig.rms_mm,
                 heldout_rms_mm: found.fig.heldout_rms_mm,
                 bic_change: f64::NAN,
                 added: false,
-                note: removed_note(ch),
+                note: format!("{REMOVED}{why}"),
             });
+            if let Some(i) = found.findings.iter().position(|f| f.effect == c) {
+                let finding = found.findings.remove(i);
+                removed.push(Removed { finding, why });
+            }
         }
-        found
-            .findings
-            .retain(|f| failed.iter().all(|ch| ch.effect != f.effect));
         if !refit(start, &mut found) {
-            return (found, None);
+            return (found, removed, None);
         }
     }
+}
+
+/// A finding the checks took out: as it was when taken out, and why.
+#[derive(Clone, Debug)]
+pub(crate) struct Removed {
+    pub finding: crate::report::Finding,
+    /// The check it failed, in words.
+    pub why: String,
 }
 
 impl Context<'_> {
@@ -288,43 +320,44 @@ fn refit(start: &Start, found: &mut Found) -> bool {
     true
 }
 
-/// Why a finding was taken out after the search, for its trial.
-fn removed_note(ch: &Checked) -> String {
-    match &ch.failure {
-        Some(Failure::Empirical {
-            heldout_rms_mm,
-            tip: false,
-        }) => format!(
-            "{REMOVED}a generic empirical correction of as many parameters, \
-             in its place, does as well on held-out rows ({heldout_rms_mm:.3} mm)"
+/// A failed check, in words.
+fn failure_words(failure: &Failure) -> String {
+    match failure {
+        Failure::Empirical { fig, tip: false } => format!(
+            "a generic empirical correction of as many parameters, in its place, does as \
+             well on held-out rows ({})",
+            held_words(fig)
         ),
-        Some(Failure::Empirical {
-            heldout_rms_mm,
-            tip: true,
-        }) => format!(
-            "{REMOVED}a generic empirical correction of as many parameters, in the \
-             joints, time and the stretches and shears of the tip position, in its place, \
-             explains the data as well ({heldout_rms_mm:.3} mm held out): the data cannot \
-             tell it from an error outside the vocabulary such as a tracker's scale error"
+        Failure::Empirical { fig, tip: true } => format!(
+            "a generic empirical correction of as many parameters, in the joints, time and \
+             the stretches and shears of the tip position, in its place, explains the data \
+             as well ({} held out): the data cannot tell it from an error outside the \
+             vocabulary such as a tracker's scale error",
+            held_words(fig)
         ),
-        Some(Failure::Varying {
+        Failure::Varying {
             feature,
-            constant_heldout_rms_mm,
-            heldout_rms_mm,
-        }) => format!(
-            "{REMOVED}its parameters fit the data better proportional to \
-             {feature} than constant ({heldout_rms_mm:.3} against {constant_heldout_rms_mm:.3} \
-             mm held out, linearised): it stands in for a gain or drift outside the vocabulary"
+            constant,
+            proportional,
+        } => format!(
+            "its parameters fit the data better proportional to {feature} than constant \
+             ({} against {} held out, linearised): it may stand in for a gain or drift \
+             outside the vocabulary",
+            held_words(proportional),
+            held_words(constant)
         ),
-        Some(Failure::NotIdentified {
+        Failure::MaybeAbsent => "with every finding fitted together, each of its \
+                                 parameters' 95 % intervals holds the value that means it is \
+                                 not there: the data do not rule its absence out"
+            .into(),
+        Failure::NotIdentified {
             statistic,
             threshold,
-        }) => format!(
-            "{REMOVED}with every finding fitted together, its parameters are not told \
-             from the nominal (Wald statistic {statistic:.2} against the 95 % threshold \
+        } => format!(
+            "with every finding fitted together, its parameters are not told from the \
+             nominal (Wald statistic {statistic:.2} against the 95 % threshold \
              {threshold:.2}: the nominal lies inside their 95 % region)"
         ),
-        None => String::new(),
     }
 }
 

@@ -1,0 +1,117 @@
+//! The second answer of a diagnosis: the best predictive model.
+//!
+//! The checks ([`crate::verify`]) keep only the findings whose form the data establish;
+//! the others are taken out, and on a real robot, where almost every constant parameter
+//! fits a little better when it may vary with something, that throws away physics that
+//! predicts. So the model the search ended with, every finding in it, is the predictive
+//! model; the findings the checks took out stay in it, graded **predictive**, where
+//! they help prediction: the fitted model without one (the others as fitted) does worse
+//! on the held-out rows by at least [`MIN_HELDOUT_GAIN`] and beyond chance
+//! ([`clearly_lower`]). Those that do not are dropped and the rest refitted together.
+//! The established findings are exactly those the checks keep: a predictive finding
+//! never makes one.
+
+use crate::candidates::EffectId;
+use crate::fit::MAX_FIT_ITERATIONS;
+use crate::found::{simulate, Found};
+use crate::grade::Grade;
+use crate::paired::clearly_lower;
+use crate::report::REMOVED;
+use crate::residual::figures;
+use crate::search::MIN_HELDOUT_GAIN;
+use crate::start::Start;
+use crate::verify::Removed;
+
+/// The predictive model: `searched` (the search's model) with `removed` (the findings
+/// the checks took out of it, leaving `established`) graded predictive where they help
+/// prediction; `established` itself when the checks took nothing out or nothing of it
+/// helps. Whether it is `established`.
+pub(crate) fn readmit(
+    start: &Start,
+    searched: Found,
+    established: Found,
+    removed: Vec<Removed>,
+) -> (Found, bool) {
+    let helping: Vec<&Removed> = removed
+        .iter()
+        .filter(|r| helps(start, &searched, r.finding.effect))
+        .collect();
+    if helping.is_empty() {
+        return (established, true);
+    }
+    let searched_findings = searched.findings.len();
+    let mut found = Found {
+        tried: established.tried.clone(),
+        ..searched
+    };
+    for r in &removed {
+        let kept = helping.iter().any(|h| h.finding.effect == r.finding.effect);
+        if !kept {
+            found.findings.retain(|f| f.effect != r.finding.effect);
+        }
+        if let Some(f) = found.findings.iter_mut().find(|f| f.effect == r.finding.effect) {
+            f.grade = Grade::Predictive;
+            f.grade_reason = format!(
+                "it helps prediction (without it the fitted model does worse on the held-out \
+                 rows, beyond chance), but its form is not established: {}; it may stand in \
+                 for something outside the vocabulary",
+                r.why
+            );
+            mark_kept(&mut found.tried, r.finding.effect);
+        }
+    }
+    for f in found.findings.iter_mut() {
+        if let Some(e) = established.findings.iter().find(|e| e.effect == f.effect) {
+            f.grade = e.grade;
+            f.grade_reason = e.grade_reason.clone();
+            f.empirical_heldout_rms_mm = e.empirical_heldout_rms_mm;
+        }
+    }
+    if found.findings.len() < searched_findings {
+        refit(start, &mut found);
+    }
+    (found, false)
+}
+
+/// Whether `c` helps `found`'s prediction: without it (the others as fitted) the
+/// held-out rows do worse by at least [`MIN_HELDOUT_GAIN`] and beyond chance.
+fn helps(start: &Start, found: &Found, c: EffectId) -> bool {
+    let mut without = found.model.clone();
+    c.remove(&mut without);
+    let Some(e) = simulate(start, &without) else {
+        // the model cannot be simulated without it: it holds the others up
+        return true;
+    };
+    let fig = figures(start.rec, &e, &start.held);
+    found.fig.heldout_score() < (1.0 - MIN_HELDOUT_GAIN) * fig.heldout_score()
+        && clearly_lower(&found.e, &e, &start.held)
+}
+
+/// The trial that took `c` out now says it is kept as predictive.
+fn mark_kept(tried: &mut [crate::report::Trial], c: EffectId) {
+    if let Some(t) = tried
+        .iter_mut()
+        .rev()
+        .find(|t| t.effect == c && t.note.starts_with(REMOVED))
+    {
+        t.note = format!(
+            "kept as predictive, not established: {}",
+            &t.note[REMOVED.len()..]
+        );
+    }
+}
+
+/// `found`'s findings refitted together on the user's model from their values (kept
+/// as they are when the fit or its simulation fails).
+fn refit(start: &Start, found: &mut Found) {
+    let x0 = found.parameters_in(&found.model);
+    let p = start.problem(start.user.clone(), found.effects());
+    let Some(fitted) = p.fit(&x0, MAX_FIT_ITERATIONS) else {
+        return;
+    };
+    let m = p.model(&fitted.x);
+    if let Some(e) = simulate(start, &m) {
+        found.take(start, m, e);
+        found.cost = fitted.cost;
+    }
+}
