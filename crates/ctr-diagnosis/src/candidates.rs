@@ -14,12 +14,13 @@
 //! | `precurvature` | ln of each tube's curvature-radius factor |
 //! | `latency` | delay of the robot behind its commands (s) |
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
+//! | `sensor_rotation` | rotation vector of the sensor's frame in the tip frame (deg); this project's extension, seen only by orientation or tangent columns |
 
 use ctr_analysis::model::ModelSpec;
 use ctr_core::Model;
 use ctr_formats::{
     Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Recording, Registration,
-    SensorOffset, Stiffness,
+    SensorOffset, SensorRotation, Stiffness,
 };
 use serde::Serialize;
 
@@ -47,11 +48,14 @@ pub enum EffectId {
     Latency,
     /// Tracked point offset from the tip.
     SensorOffset,
+    /// The tracked sensor's frame turned in the tip frame (this project's extension).
+    SensorRotation,
 }
 
 impl EffectId {
-    /// All ten, in the contract's order.
-    pub const ALL: [EffectId; 10] = [
+    /// All eleven: the contract's ten in its order, then this project's
+    /// `sensor_rotation`.
+    pub const ALL: [EffectId; 11] = [
         EffectId::Torsion,
         EffectId::Friction,
         EffectId::Clearance,
@@ -62,6 +66,7 @@ impl EffectId {
         EffectId::Precurvature,
         EffectId::Latency,
         EffectId::SensorOffset,
+        EffectId::SensorRotation,
     ];
 
     /// The contract's id.
@@ -81,6 +86,7 @@ impl EffectId {
             EffectId::Precurvature => "precurvature",
             EffectId::Latency => "latency",
             EffectId::SensorOffset => "sensor_offset",
+            EffectId::SensorRotation => "sensor_rotation",
         }
     }
 
@@ -126,6 +132,7 @@ impl EffectId {
             EffectId::Precurvature => e.precurvature.is_some(),
             EffectId::Latency => e.latency.is_some(),
             EffectId::SensorOffset => e.sensor_offset.is_some(),
+            EffectId::SensorRotation => e.sensor_rotation.is_some(),
         }
     }
 
@@ -143,6 +150,7 @@ impl EffectId {
             EffectId::Precurvature => e.precurvature = None,
             EffectId::Latency => e.latency = None,
             EffectId::SensorOffset => e.sensor_offset = None,
+            EffectId::SensorRotation => e.sensor_rotation = None,
         }
     }
 
@@ -158,7 +166,7 @@ impl EffectId {
             EffectId::JointOffset => 2 * n,
             EffectId::Stiffness | EffectId::Precurvature => n,
             EffectId::Latency => 1,
-            EffectId::SensorOffset => 3,
+            EffectId::SensorOffset | EffectId::SensorRotation => 3,
         }
     }
 
@@ -205,6 +213,9 @@ impl EffectId {
             },
             EffectId::Latency => plain("latency".into(), "s"),
             EffectId::SensorOffset => plain(format!("sensor offset {}", axis(i)), "mm"),
+            EffectId::SensorRotation => {
+                plain(format!("sensor rotation about tip {}", axis(i)), "deg")
+            }
         }
     }
 
@@ -233,6 +244,7 @@ impl EffectId {
             EffectId::Stiffness | EffectId::Precurvature => 1e-3,
             EffectId::Latency => 0.005,
             EffectId::SensorOffset => 0.01,
+            EffectId::SensorRotation => 0.01,
         }
     }
 
@@ -268,6 +280,7 @@ impl EffectId {
             EffectId::Stiffness | EffectId::Precurvature => (-MAX_LN_FACTOR, MAX_LN_FACTOR),
             EffectId::Latency => (-MAX_LATENCY_S, MAX_LATENCY_S),
             EffectId::SensorOffset => (-MAX_SENSOR_OFFSET_MM, MAX_SENSOR_OFFSET_MM),
+            EffectId::SensorRotation => (-MAX_SENSOR_ROTATION_DEG, MAX_SENSOR_ROTATION_DEG),
         }
     }
 
@@ -356,6 +369,9 @@ impl EffectId {
             EffectId::SensorOffset => e
                 .sensor_offset
                 .map_or(vec![0.0; 3], |s| s.offset_mm.to_vec()),
+            EffectId::SensorRotation => e
+                .sensor_rotation
+                .map_or(vec![0.0; 3], |s| s.rotation_vector_deg().to_vec()),
         }
     }
 
@@ -422,6 +438,9 @@ impl EffectId {
                     offset_mm: [x[0], x[1], x[2]],
                 })
             }
+            EffectId::SensorRotation => {
+                e.sensor_rotation = Some(SensorRotation::from_rotation_vector([x[0], x[1], x[2]]))
+            }
         }
     }
 }
@@ -453,6 +472,9 @@ const MAX_LN_FACTOR: f64 = 2.0;
 const MAX_LATENCY_S: f64 = 5.0;
 /// Largest sensor offset component, mm.
 const MAX_SENSOR_OFFSET_MM: f64 = 50.0;
+/// Largest component of a sensor's rotation vector, deg (a sensor mounted turned by
+/// more is a wrong sensor axis, not a calibration).
+const MAX_SENSOR_ROTATION_DEG: f64 = 45.0;
 
 /// Why a candidate cannot be tried on this model and recording, if so.
 pub(crate) fn not_applicable(
@@ -483,6 +505,11 @@ pub(crate) fn not_applicable(
         EffectId::Clearance if model.effects.gravity.is_some() => {
             Some("not tried: clearance together with gravity is not modelled".into())
         }
+        EffectId::SensorRotation if rec.angular.is_none() => Some(
+            "not tried: a sensor's rotation shows only in orientation or tangent columns, \
+             and the recording has none (or their noise cannot be estimated)"
+                .into(),
+        ),
         EffectId::Clearance | EffectId::Friction if model.robot.n_tubes() < 2 => {
             Some("not tried: one tube has no neighbour".into())
         }

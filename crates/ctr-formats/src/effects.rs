@@ -36,12 +36,17 @@
 //!
 //! [model.effects.sensor_offset]     # tracked point in the tip frame
 //! offset_mm = [0.0, 0.0, -2.0]
+//!
+//! [model.effects.sensor_rotation]   # sensor frame in the tip frame: R_measured = R_tip S
+//! rotation_axis = [1.0, 0.0, 0.0]   # in the tip frame, normalised when read
+//! rotation_deg = 3.0
 //! ```
 //!
 //! The order in which they act on a row: joint offsets, then latency along the run,
 //! then friction on the delayed path (`ctr_analysis::timeline`); the mechanics with the
-//! scaled tubes, clearance kinks and gravity; then the sensor offset and the
-//! registration (`docs/formats.md`'s conventions, those of
+//! scaled tubes, clearance kinks and gravity; then the sensor offset, the sensor's
+//! rotation (this project's extension of the vocabulary: it turns the measured
+//! orientation and tangent only) and the registration (`docs/formats.md`'s conventions, those of
 //! `tests/data/shared/recordings/*.truth.json`). Clearance and gravity together are not
 //! modelled (the loaded solver has no kinks) and are refused.
 
@@ -85,6 +90,10 @@ pub struct Effects {
     /// `sensor_offset`: tracked point in the tip frame.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_offset: Option<SensorOffset>,
+    /// `sensor_rotation` (this project's extension): the tracked sensor's frame turned
+    /// in the tip frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_rotation: Option<SensorRotation>,
     /// `registration`: tracker frame offset from W.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub registration: Option<Registration>,
@@ -183,6 +192,48 @@ pub struct SensorOffset {
     /// The tracked point in the tip frame, mm.
     #[serde(deserialize_with = "super::toml_doc::exact")]
     pub offset_mm: [f64; 3],
+}
+
+/// `[model.effects.sensor_rotation]`: the tracked sensor's frame in the tip frame, `S`
+/// (a rotation about `rotation_axis`, in the tip frame, by `rotation_deg`): the measured
+/// orientation is `R_tip S`, its tangent (z axis) `R_tip S z`. The hand-eye part of a
+/// tracker's calibration; the tracked point stays where `sensor_offset` puts it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorRotation {
+    /// Axis of `S` in the tip frame (normalised when used; default `[0, 0, 1]`).
+    #[serde(default = "z_axis", deserialize_with = "super::toml_doc::exact")]
+    pub rotation_axis: [f64; 3],
+    /// Angle of `S` about the axis, degrees (default 0).
+    #[serde(default)]
+    pub rotation_deg: f64,
+}
+
+impl SensorRotation {
+    /// From a rotation vector (axis times angle, degrees, in the tip frame).
+    ///
+    /// ```
+    /// let s = ctr_formats::SensorRotation::from_rotation_vector([3.0, 0.0, 0.0]);
+    /// assert_eq!((s.rotation_axis, s.rotation_deg), ([1.0, 0.0, 0.0], 3.0));
+    /// assert_eq!(s.rotation_vector_deg(), [3.0, 0.0, 0.0]);
+    /// ```
+    pub fn from_rotation_vector(rotation_vector_deg: [f64; 3]) -> Self {
+        let r = Registration::from_rotation_vector(rotation_vector_deg, [0.0; 3]);
+        SensorRotation {
+            rotation_axis: r.rotation_axis,
+            rotation_deg: r.rotation_deg,
+        }
+    }
+
+    /// The rotation vector (unit axis times angle, degrees).
+    pub fn rotation_vector_deg(&self) -> [f64; 3] {
+        Registration {
+            translation_mm: [0.0; 3],
+            rotation_axis: self.rotation_axis,
+            rotation_deg: self.rotation_deg,
+        }
+        .rotation_vector_deg()
+    }
 }
 
 /// `[model.effects.registration]`: `p_measured = R p_W + t`.
@@ -312,6 +363,7 @@ impl Effects {
             stiffness,
             precurvature,
             sensor_offset,
+            sensor_rotation,
             registration,
         } = self;
         [
@@ -323,6 +375,7 @@ impl Effects {
             ("stiffness", stiffness.is_some()),
             ("precurvature", precurvature.is_some()),
             ("sensor_offset", sensor_offset.is_some()),
+            ("sensor_rotation", sensor_rotation.is_some()),
             ("registration", registration.is_some()),
         ]
         .into_iter()
@@ -467,6 +520,17 @@ impl Effects {
         if let Some(s) = &self.sensor_offset {
             check_finite("sensor_offset", "offset_mm", &s.offset_mm)?;
         }
+        if let Some(r) = &self.sensor_rotation {
+            check_finite("sensor_rotation", "rotation_axis", &r.rotation_axis)?;
+            check_finite("sensor_rotation", "rotation_deg", &[r.rotation_deg])?;
+            if r.rotation_deg != 0.0 && r.rotation_axis.iter().all(|&x| x == 0.0) {
+                return Err((
+                    vec!["sensor_rotation", "rotation_axis"],
+                    "model.effects.sensor_rotation.rotation_axis: [0, 0, 0] has no direction"
+                        .into(),
+                ));
+            }
+        }
         if let Some(r) = &self.registration {
             check_finite("registration", "translation_mm", &r.translation_mm)?;
             check_finite("registration", "rotation_axis", &r.rotation_axis)?;
@@ -507,6 +571,17 @@ impl Effects {
         }
         if let Some(s) = self.sensor_offset {
             e.sensor_offset_mm = s.offset_mm;
+        }
+        if let Some(s) = self.sensor_rotation {
+            let axis = if s.rotation_axis.iter().all(|&x| x == 0.0) {
+                z_axis()
+            } else {
+                s.rotation_axis
+            };
+            e.sensor_rotation = Some(
+                CoreRegistration::from_axis_angle(axis, s.rotation_deg.to_radians(), [0.0; 3])
+                    .rotation,
+            );
         }
         if let Some(r) = self.registration {
             e.registration = Some(CoreRegistration::from_axis_angle(

@@ -182,7 +182,7 @@ pub use actuation::{
 };
 pub use effects::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
-    SensorOffset, Stiffness, CLEARANCE_FIT_TABLE_SIZES,
+    SensorOffset, SensorRotation, Stiffness, CLEARANCE_FIT_TABLE_SIZES,
 };
 pub use empirical::{Correction, Empirical, EmpiricalTerm, Feature, Term, AXES};
 pub use joints::JointTable;

@@ -212,6 +212,10 @@ pub struct Effects<T: Real, const N: usize> {
     pub registration: Option<Registration<T>>,
     /// Tracked point in the tip frame, mm.
     pub sensor_offset_mm: [T; 3],
+    /// The tracked sensor's orientation in the tip frame (the hand-eye part of a
+    /// tracker's calibration), if it is not the tip frame's: the measured frame is
+    /// `R_tip S`. It turns only the measured orientation and tangent, not the point.
+    pub sensor_rotation: Option<Matrix3<T>>,
 }
 
 impl<T: Real, const N: usize> Default for Effects<T, N> {
@@ -222,6 +226,7 @@ impl<T: Real, const N: usize> Default for Effects<T, N> {
             clearance: [None; N],
             registration: None,
             sensor_offset_mm: [T::zero(); 3],
+            sensor_rotation: None,
         }
     }
 }
@@ -245,8 +250,10 @@ impl<T: Real, const N: usize> Effects<T, N> {
         actual
     }
 
-    /// The tip frame as measured: the sensor offset in the tip frame, then the
-    /// registration.
+    /// The tip frame as measured: the sensor offset and the sensor's rotation in the tip
+    /// frame, then the registration. (A constant rotation on the right leaves the
+    /// frame's angular velocity in W unchanged, so the derivative columns need only the
+    /// offset's lever arm and the registration: `measured_column`.)
     ///
     /// ```
     /// use ctr_core::{effects::Effects, Frame};
@@ -257,6 +264,9 @@ impl<T: Real, const N: usize> Effects<T, N> {
     pub fn measured(&self, tip: &Frame<T>) -> Frame<T> {
         let mut f = *tip;
         f.position += tip.rotation * Vector3::from(self.sensor_offset_mm);
+        if let Some(s) = &self.sensor_rotation {
+            f.rotation *= s;
+        }
         if let Some(r) = &self.registration {
             f.position = r.apply_point(&f.position);
             f.rotation = r.rotation * f.rotation;

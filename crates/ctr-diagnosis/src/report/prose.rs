@@ -21,6 +21,7 @@ pub(crate) fn parameters(c: EffectId, m: &ModelSpec) -> serde_json::Value {
         EffectId::Precurvature => serde_json::to_value(&e.precurvature),
         EffectId::Latency => serde_json::to_value(e.latency),
         EffectId::SensorOffset => serde_json::to_value(e.sensor_offset),
+        EffectId::SensorRotation => serde_json::to_value(e.sensor_rotation),
     };
     v.unwrap_or(serde_json::Value::Null)
 }
@@ -160,6 +161,15 @@ pub(crate) fn explain(c: EffectId, m: &ModelSpec) -> String {
                 "The tracked point is not the tube's tip: it sits at ({}) mm in the tip \
                  frame.",
                 list(&s.offset_mm, "")
+            )
+        }
+        EffectId::SensorRotation => {
+            let s = e.sensor_rotation.expect("written by the fit");
+            format!(
+                "The tracked sensor sits turned in the tip frame: by {:.3} deg about ({}) \
+                 (tip frame).",
+                s.rotation_deg,
+                list(&s.rotation_axis, "")
             )
         }
     }
