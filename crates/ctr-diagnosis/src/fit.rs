@@ -340,118 +340,176 @@ impl Problem<'_> {
     pub fn fit_until(&self, x0: &[f64], max_iter: usize, target: Option<f64>) -> Option<Fitted> {
         let np = x0.len();
         let bounds: Vec<(f64, f64)> = (0..np).map(|j| self.scale(j).1).collect();
-        let mut x: Vec<f64> = x0
+        let x: Vec<f64> = x0
             .iter()
             .zip(&bounds)
             .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
             .collect();
-        let mut p = self.predictions(&x)?;
-        let mut e = self.errors(&p);
-        let (mut cost, mut w) = self.cost(&e);
+        let mut now = self.iterate(x)?;
         if np == 0 {
-            return Some(Fitted {
-                x,
-                cost,
-                gave_up: false,
-                stuck: false,
-            });
+            return Some(now.fitted(false));
         }
         let mut lambda: f64 = 1e-3;
-        let (mut steps, mut stuck) = (0, false);
         for _ in 0..max_iter {
-            let (jac, blocked) = self.jacobian_and_blocked(&x, &p);
-            // a side that cannot be simulated is a bound of this iteration's steps
-            let step_bounds: Vec<(f64, f64)> = bounds
-                .iter()
-                .zip(&blocked)
-                .zip(&x)
-                .map(|(((lo, hi), [up, down]), &xj)| {
-                    (if *down { xj } else { *lo }, if *up { xj } else { *hi })
-                })
-                .collect();
-            // weighted normal equations
-            let mut h = DMatrix::<f64>::zeros(np, np);
-            let mut g = DVector::<f64>::zeros(np);
-            for (row, wr) in w.iter().enumerate() {
-                for a in 0..3 {
-                    let i = 3 * row + a;
-                    let ji = jac.row(i);
-                    for c1 in 0..np {
-                        let v = wr * ji[c1];
-                        if v == 0.0 {
-                            continue;
-                        }
-                        g[c1] += v * e[i];
-                        for c2 in c1..np {
-                            h[(c1, c2)] += v * ji[c2];
-                        }
-                    }
-                }
-            }
-            for c1 in 0..np {
-                for c2 in 0..c1 {
-                    h[(c1, c2)] = h[(c2, c1)];
-                }
-            }
+            let (jac, blocked) = self.jacobian_and_blocked(&now.x, &now.p);
+            let (h, g) = normal_equations(&jac, &now.w, &now.e, np);
             let dmax = (0..np).map(|j| h[(j, j)]).fold(0.0, f64::max);
             if dmax <= 0.0 {
                 break;
             }
             if let Some(target) = target {
-                if cost - PROJECTED_GAIN_MARGIN * projected_gain(&h, &g, dmax) > target {
-                    return Some(Fitted {
-                        x,
-                        cost,
-                        gave_up: true,
-                        stuck: false,
-                    });
+                if now.cost - PROJECTED_GAIN_MARGIN * projected_gain(&h, &g, dmax) > target {
+                    return Some(now.fitted(true));
                 }
             }
-            let mut improved = false;
-            for _ in 0..12 {
-                let mut a = h.clone();
-                for j in 0..np {
-                    a[(j, j)] += lambda * h[(j, j)].max(1e-9 * dmax);
+            // a side that cannot be simulated bounds this iteration's steps
+            let step_bounds = held_at_blocked(&bounds, &blocked, &now.x);
+            match self.damped_step(&mut now, &h, &g, dmax, &step_bounds, &mut lambda) {
+                Some(true) => continue,
+                Some(false) => break,
+                None => {
+                    now.stuck =
+                        now.steps == 0 && projected_gain(&h, &g, dmax) > STUCK_GAIN * now.cost;
+                    break;
                 }
-                let Some(step) = solve_step(&a, &g, &x, &step_bounds) else {
-                    lambda *= 10.0;
-                    continue;
-                };
-                let xn: Vec<f64> = x.iter().zip(&step).map(|(a, b)| a + b).collect();
-                if let Some(pn) = self.predictions(&xn) {
-                    let en = self.errors(&pn);
-                    let (cn, wn) = self.cost(&en);
-                    if cn < cost {
-                        let rel = (cost - cn) / cost.max(f64::MIN_POSITIVE);
-                        let small = step
-                            .iter()
-                            .enumerate()
-                            .all(|(j, d)| d.abs() < 1e-3 * self.scale(j).0);
-                        x = xn;
-                        p = pn;
-                        e = en;
-                        cost = cn;
-                        w = wn;
-                        lambda = (lambda / 3.0).max(1e-9);
-                        improved = !(rel < 1e-7 || small);
-                        steps += 1;
-                        break;
-                    }
-                }
-                lambda *= 10.0;
-            }
-            if !improved {
-                stuck = steps == 0 && projected_gain(&h, &g, dmax) > STUCK_GAIN * cost;
-                break;
             }
         }
-        Some(Fitted {
+        Some(now.fitted(false))
+    }
+
+    /// The fit's state at parameters `x` (`None` if they cannot be simulated).
+    fn iterate(&self, x: Vec<f64>) -> Option<Iterate> {
+        let p = self.predictions(&x)?;
+        let e = self.errors(&p);
+        let (cost, w) = self.cost(&e);
+        Some(Iterate {
             x,
+            p,
+            e,
             cost,
-            gave_up: false,
-            stuck,
+            w,
+            steps: 0,
+            stuck: false,
         })
     }
+
+    /// One Levenberg-Marquardt step from `now` on the normal equations `(h, g)`
+    /// (largest diagonal `dmax`): the damping `lambda` raised tenfold until a step
+    /// within `bounds` lowers the cost (at most 12 tries), then eased threefold.
+    /// Whether the fit goes on: a step was taken and it was not negligible (relative
+    /// decrease below `1e-7`, or every parameter moved less than `1e-3` of its scale);
+    /// `None` when no step lowered the cost.
+    fn damped_step(
+        &self,
+        now: &mut Iterate,
+        h: &DMatrix<f64>,
+        g: &DVector<f64>,
+        dmax: f64,
+        bounds: &[(f64, f64)],
+        lambda: &mut f64,
+    ) -> Option<bool> {
+        let np = now.x.len();
+        for _ in 0..12 {
+            let mut a = h.clone();
+            for j in 0..np {
+                a[(j, j)] += *lambda * h[(j, j)].max(1e-9 * dmax);
+            }
+            let Some(step) = solve_step(&a, g, &now.x, bounds) else {
+                *lambda *= 10.0;
+                continue;
+            };
+            let xn: Vec<f64> = now.x.iter().zip(&step).map(|(a, b)| a + b).collect();
+            if let Some(next) = self.iterate(xn) {
+                if next.cost < now.cost {
+                    let rel = (now.cost - next.cost) / now.cost.max(f64::MIN_POSITIVE);
+                    let small = step
+                        .iter()
+                        .enumerate()
+                        .all(|(j, d)| d.abs() < 1e-3 * self.scale(j).0);
+                    let steps = now.steps + 1;
+                    *now = Iterate { steps, ..next };
+                    *lambda = (*lambda / 3.0).max(1e-9);
+                    return Some(!(rel < 1e-7 || small));
+                }
+            }
+            *lambda *= 10.0;
+        }
+        None
+    }
+}
+
+/// Where Levenberg-Marquardt stands: the parameters, their predictions and errors,
+/// the robust cost and the IRLS weights.
+struct Iterate {
+    x: Vec<f64>,
+    p: Vec<f64>,
+    e: Vec<f64>,
+    cost: f64,
+    w: Vec<f64>,
+    /// Steps taken to get here.
+    steps: usize,
+    /// Ended where no step lowered the cost though the linearised problem promised a
+    /// gain (see [`Fitted::stuck`]).
+    stuck: bool,
+}
+
+impl Iterate {
+    /// The fit ending here (`gave_up`: on its target).
+    fn fitted(self, gave_up: bool) -> Fitted {
+        Fitted {
+            x: self.x,
+            cost: self.cost,
+            gave_up,
+            stuck: self.stuck,
+        }
+    }
+}
+
+/// `bounds` with each parameter held at its value `x` on a side where the model cannot
+/// be simulated a step away (`blocked`: up, down).
+fn held_at_blocked(bounds: &[(f64, f64)], blocked: &[[bool; 2]], x: &[f64]) -> Vec<(f64, f64)> {
+    bounds
+        .iter()
+        .zip(blocked)
+        .zip(x)
+        .map(|(((lo, hi), [up, down]), &xj)| {
+            (if *down { xj } else { *lo }, if *up { xj } else { *hi })
+        })
+        .collect()
+}
+
+/// The weighted normal equations `H = J^T W J`, `g = J^T W e` of Jacobian `jac`,
+/// weights `w` (one per 3 rows of `jac`) and errors `e`, over `np` parameters.
+fn normal_equations(
+    jac: &DMatrix<f64>,
+    w: &[f64],
+    e: &[f64],
+    np: usize,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let mut h = DMatrix::<f64>::zeros(np, np);
+    let mut g = DVector::<f64>::zeros(np);
+    for (row, wr) in w.iter().enumerate() {
+        for a in 0..3 {
+            let i = 3 * row + a;
+            let ji = jac.row(i);
+            for c1 in 0..np {
+                let v = wr * ji[c1];
+                if v == 0.0 {
+                    continue;
+                }
+                g[c1] += v * e[i];
+                for c2 in c1..np {
+                    h[(c1, c2)] += v * ji[c2];
+                }
+            }
+        }
+    }
+    for c1 in 0..np {
+        for c2 in 0..c1 {
+            h[(c1, c2)] = h[(c2, c1)];
+        }
+    }
+    (h, g)
 }
 
 /// The Gauss-Newton model's decrease `g^T H^-1 g` of the weighted sum of squares

@@ -107,8 +107,8 @@ pub use candidates::EffectId;
 pub use diagnose::diagnose;
 pub use empirical::hybrid::{FOLDS, MAX_TERMS};
 pub use error::DiagnoseError;
-pub use grade::{absent_value, Grade};
 pub use evaluate::evaluate;
+pub use grade::{absent_value, Grade};
 pub use locate::stability::{
     checked_warn_margin, near_snap_words, MarginRange, Marks, Stability, ROWS_AFTER_A_SNAP,
 };
@@ -117,8 +117,9 @@ pub use options::{Checks, Options};
 pub use report::html::{escape_html, Page};
 pub use report::plots::Plot;
 pub use report::{
-    fitted_file, Alternative, AngularFigures, AngularNoise, Correlated, Diagnosis, Empirical, ExpectedInterval,
-    Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun, Term, Trial,
+    fitted_file, Alternative, AngularFigures, AngularNoise, Correlated, Diagnosis, Empirical,
+    ExpectedInterval, Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun,
+    Term, Trial,
 };
 pub use search::MIN_HELDOUT_GAIN;
 pub use start::noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};

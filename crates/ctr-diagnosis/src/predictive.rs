@@ -49,7 +49,11 @@ pub(crate) fn readmit(
         if !kept {
             found.findings.retain(|f| f.effect != r.finding.effect);
         }
-        if let Some(f) = found.findings.iter_mut().find(|f| f.effect == r.finding.effect) {
+        if let Some(f) = found
+            .findings
+            .iter_mut()
+            .find(|f| f.effect == r.finding.effect)
+        {
             f.grade = Grade::Predictive;
             f.grade_reason = format!(
                 "it helps prediction (without it the fitted model does worse on the held-out \

@@ -99,7 +99,9 @@ pub(crate) fn figures(rec: &Recording, e: &[RowError], held: &[bool]) -> Figures
     let positions = Sums::of(e, held, |v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
     let angular = rec.angular.map(|w| {
         let deg2 = (1.0 / w.mm_per_rad()).to_degrees().powi(2);
-        let angles = Sums::of(e, held, |v| deg2 * (v[3] * v[3] + v[4] * v[4] + v[5] * v[5]));
+        let angles = Sums::of(e, held, |v| {
+            deg2 * (v[3] * v[3] + v[4] * v[4] + v[5] * v[5])
+        });
         let weighted = Sums::of(e, held, size2);
         AngularFigures {
             rms_deg: angles.rms(),

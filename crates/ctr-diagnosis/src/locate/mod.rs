@@ -160,163 +160,239 @@ fn direction(rec: &Recording, f: &[f64]) -> Vec<f64> {
 /// false are left out), strongest first, and the share each explains. `tips` are the
 /// modelled tips (for the workspace regression).
 pub fn locate(rec: &Recording, e: &[[f64; 3]], mask: &[bool], tips: &[[f64; 3]]) -> Vec<Statement> {
-    let rows = e.len();
-    let ones = vec![1.0; rows];
-    let sse: f64 = (0..rows)
-        .filter(|&r| mask[r])
-        .map(|r| e[r].iter().map(|v| v * v).sum::<f64>())
-        .sum();
-    let mut out = Vec::new();
-    if sse <= 0.0 {
-        return out;
+    let errors = Errors::new(e, mask);
+    if errors.sse <= 0.0 {
+        return Vec::new();
     }
-    // runs
-    for run in &rec.runs {
-        let s: f64 = run
-            .rows
-            .clone()
+    let mut out = errors.by_run(rec);
+    out.push(errors.offset());
+    for f in features(rec) {
+        out.extend(errors.feature_statement(&f));
+        out.extend(errors.direction_statement(rec, &f));
+    }
+    out.push(errors.workspace(tips));
+    out.sort_by(|a, b| b.explained.total_cmp(&a.explained));
+    out
+}
+
+/// The error vectors a diagnosis locates, the rows that count, and what every
+/// regression on them shares: the constant regressor, the error's size per row and
+/// the squared error about zero.
+struct Errors<'a> {
+    e: &'a [[f64; 3]],
+    mask: &'a [bool],
+    /// The constant regressor (a one per row).
+    ones: Vec<f64>,
+    /// The error's size `|e|` per row.
+    size: Vec<f64>,
+    /// The squared error of the rows that count, about zero.
+    sse: f64,
+}
+
+impl<'a> Errors<'a> {
+    /// The errors `e` on the rows with `mask`.
+    fn new(e: &'a [[f64; 3]], mask: &'a [bool]) -> Self {
+        let rows = e.len();
+        let sse: f64 = (0..rows)
             .filter(|&r| mask[r])
             .map(|r| e[r].iter().map(|v| v * v).sum::<f64>())
             .sum();
-        let count = run.rows.clone().filter(|&r| mask[r]).count();
-        if count == 0 {
-            continue;
+        let size: Vec<f64> = e
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect();
+        Errors {
+            e,
+            mask,
+            ones: vec![1.0; rows],
+            size,
+            sse,
         }
-        let share = s / sse;
-        let rms = (s / count as f64).sqrt();
-        out.push(Statement {
-            kind: "run".into(),
-            feature: run.label.clone(),
-            explained: share,
-            text: format!(
-                "run {}: {:.0}% of the squared error over {:.0}% of the rows (RMS {:.3} mm)",
-                run.label,
-                100.0 * share,
-                100.0 * count as f64 / mask.iter().filter(|m| **m).count() as f64,
-                rms
-            ),
-        });
     }
-    // constant offset
-    let off = explained(e, std::slice::from_ref(&ones), mask);
-    let mean = {
-        let mut m = [0.0; 3];
-        let c = mask.iter().filter(|m| **m).count() as f64;
-        for r in (0..rows).filter(|&r| mask[r]) {
-            for a in 0..3 {
-                m[a] += e[r][a] / c;
+
+    /// By run: each run's share of the squared error, against its share of the rows.
+    fn by_run(&self, rec: &Recording) -> Vec<Statement> {
+        let (e, mask) = (self.e, self.mask);
+        let mut out = Vec::new();
+        for run in &rec.runs {
+            let s: f64 = run
+                .rows
+                .clone()
+                .filter(|&r| mask[r])
+                .map(|r| e[r].iter().map(|v| v * v).sum::<f64>())
+                .sum();
+            let count = run.rows.clone().filter(|&r| mask[r]).count();
+            if count == 0 {
+                continue;
             }
-        }
-        m
-    };
-    out.push(Statement {
-        kind: "offset".into(),
-        feature: "constant".into(),
-        explained: off,
-        text: format!(
-            "constant offset ({:.2}, {:.2}, {:.2}) mm: explains {:.0}% of the squared error",
-            mean[0],
-            mean[1],
-            mean[2],
-            100.0 * off
-        ),
-    });
-    let size: Vec<f64> = e
-        .iter()
-        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-        .collect();
-    for f in features(rec) {
-        if f.periodic {
-            let c: Vec<f64> = f.values.iter().map(|v| v.to_radians().cos()).collect();
-            let s: Vec<f64> = f.values.iter().map(|v| v.to_radians().sin()).collect();
-            let spread = spread_of(&f.values, mask);
-            if spread > 1e-6 {
-                let ex = explained(e, &[ones.clone(), c, s], mask);
-                let idx: Vec<usize> = (0..rows).filter(|&r| mask[r]).collect();
-                let peak = peak_deg(
-                    &idx.iter().map(|&r| size[r]).collect::<Vec<_>>(),
-                    &idx.iter().map(|&r| f.values[r]).collect::<Vec<_>>(),
-                );
-                out.push(Statement {
-                    kind: "periodic".into(),
-                    feature: f.name.clone(),
-                    explained: ex,
-                    text: format!(
-                        "periodic in {} (one harmonic explains {:.0}% of the squared error; \
-                         the error is largest near {:.0} deg)",
-                        f.name,
-                        100.0 * ex,
-                        peak
-                    ),
-                });
-            }
-        } else if spread_of(&f.values, mask) > 1e-6 {
-            let ex = explained(e, &[ones.clone(), f.values.clone()], mask);
-            let r = pearson(&size, &f.values, mask);
+            let share = s / self.sse;
+            let rms = (s / count as f64).sqrt();
             out.push(Statement {
-                kind: "grows_with".into(),
-                feature: f.name.clone(),
-                explained: ex,
+                kind: "run".into(),
+                feature: run.label.clone(),
+                explained: share,
                 text: format!(
-                    "{} with {} (linear fit explains {:.0}% of the squared error; \
-                     correlation of the error's size with it r = {:.2})",
-                    if r >= 0.0 { "grows" } else { "shrinks" },
-                    f.name,
-                    100.0 * ex,
-                    r
+                    "run {}: {:.0}% of the squared error over {:.0}% of the rows (RMS {:.3} mm)",
+                    run.label,
+                    100.0 * share,
+                    100.0 * count as f64 / mask.iter().filter(|m| **m).count() as f64,
+                    rms
                 ),
             });
         }
-        // direction of motion
+        out
+    }
+
+    /// A constant offset: `e = a`, with the mean error.
+    fn offset(&self) -> Statement {
+        let (e, mask) = (self.e, self.mask);
+        let off = explained(e, std::slice::from_ref(&self.ones), mask);
+        let mean = {
+            let mut m = [0.0; 3];
+            let c = mask.iter().filter(|m| **m).count() as f64;
+            for r in (0..e.len()).filter(|&r| mask[r]) {
+                for a in 0..3 {
+                    m[a] += e[r][a] / c;
+                }
+            }
+            m
+        };
+        Statement {
+            kind: "offset".into(),
+            feature: "constant".into(),
+            explained: off,
+            text: format!(
+                "constant offset ({:.2}, {:.2}, {:.2}) mm: explains {:.0}% of the squared error",
+                mean[0],
+                mean[1],
+                mean[2],
+                100.0 * off
+            ),
+        }
+    }
+
+    /// The regression on one feature that varies over the rows: periodic in a rotation,
+    /// or growing with a length or the time (`None` for a feature that stays put).
+    fn feature_statement(&self, f: &Feature) -> Option<Statement> {
+        let varies = spread_of(&f.values, self.mask) > 1e-6;
+        varies.then(|| {
+            if f.periodic {
+                self.periodic(f)
+            } else {
+                self.grows_with(f)
+            }
+        })
+    }
+
+    /// Periodic in a rotation `phi`: `e = a + b cos phi + c sin phi`, with the angle
+    /// where the error's size peaks.
+    fn periodic(&self, f: &Feature) -> Statement {
+        let (e, mask) = (self.e, self.mask);
+        let c: Vec<f64> = f.values.iter().map(|v| v.to_radians().cos()).collect();
+        let s: Vec<f64> = f.values.iter().map(|v| v.to_radians().sin()).collect();
+        let ex = explained(e, &[self.ones.clone(), c, s], mask);
+        let idx: Vec<usize> = (0..e.len()).filter(|&r| mask[r]).collect();
+        let peak = peak_deg(
+            &idx.iter().map(|&r| self.size[r]).collect::<Vec<_>>(),
+            &idx.iter().map(|&r| f.values[r]).collect::<Vec<_>>(),
+        );
+        Statement {
+            kind: "periodic".into(),
+            feature: f.name.clone(),
+            explained: ex,
+            text: format!(
+                "periodic in {} (one harmonic explains {:.0}% of the squared error; \
+                 the error is largest near {:.0} deg)",
+                f.name,
+                100.0 * ex,
+                peak
+            ),
+        }
+    }
+
+    /// Grows (or shrinks) with a joint, an exposed length or the time `f`:
+    /// `e = a + b f`, with the correlation of the error's size with it.
+    fn grows_with(&self, f: &Feature) -> Statement {
+        let ex = explained(self.e, &[self.ones.clone(), f.values.clone()], self.mask);
+        let r = pearson(&self.size, &f.values, self.mask);
+        Statement {
+            kind: "grows_with".into(),
+            feature: f.name.clone(),
+            explained: ex,
+            text: format!(
+                "{} with {} (linear fit explains {:.0}% of the squared error; \
+                 correlation of the error's size with it r = {:.2})",
+                if r >= 0.0 { "grows" } else { "shrinks" },
+                f.name,
+                100.0 * ex,
+                r
+            ),
+        }
+    }
+
+    /// The direction of motion of a feature: `e = a + b sign(d f / dt)` over the rows
+    /// where it moves, as a share of all the squared error (`None` unless it moves both
+    /// ways on at least 10 rows).
+    fn direction_statement(&self, rec: &Recording, f: &Feature) -> Option<Statement> {
+        let (e, mask, ones) = (self.e, self.mask, &self.ones);
+        let rows = e.len();
         let d = direction(rec, &f.values);
         let moving: Vec<bool> = (0..rows).map(|r| mask[r] && d[r] != 0.0).collect();
         let n_moving = moving.iter().filter(|m| **m).count();
         let both = d.iter().any(|v| *v > 0.0) && d.iter().any(|v| *v < 0.0);
-        if n_moving >= 10 && both {
-            let ex_dir = explained(e, &[ones.clone(), d.clone()], &moving)
-                - explained(e, std::slice::from_ref(&ones), &moving);
-            // share of the whole error this opening carries
-            let moving_sse: f64 = (0..rows)
-                .filter(|&r| moving[r])
-                .map(|r| e[r].iter().map(|v| v * v).sum::<f64>())
-                .sum();
-            let share = ex_dir.max(0.0) * moving_sse / sse;
-            out.push(Statement {
-                kind: "direction".into(),
-                feature: f.name.clone(),
-                explained: share,
-                text: format!(
-                    "depends on the direction of motion of {} (a loop that opens when it \
-                     reverses: {:.0}% of the squared error of the rows where it moves, {:.0}% \
-                     of all)",
-                    f.name,
-                    100.0 * ex_dir.max(0.0),
-                    100.0 * share
-                ),
-            });
+        if n_moving < 10 || !both {
+            return None;
+        }
+        let ex_dir = explained(e, &[ones.clone(), d.clone()], &moving)
+            - explained(e, std::slice::from_ref(ones), &moving);
+        // share of the whole error this opening carries
+        let moving_sse: f64 = (0..rows)
+            .filter(|&r| moving[r])
+            .map(|r| e[r].iter().map(|v| v * v).sum::<f64>())
+            .sum();
+        let share = ex_dir.max(0.0) * moving_sse / self.sse;
+        Some(Statement {
+            kind: "direction".into(),
+            feature: f.name.clone(),
+            explained: share,
+            text: format!(
+                "depends on the direction of motion of {} (a loop that opens when it \
+                 reverses: {:.0}% of the squared error of the rows where it moves, {:.0}% \
+                 of all)",
+                f.name,
+                100.0 * ex_dir.max(0.0),
+                100.0 * share
+            ),
+        })
+    }
+
+    /// Position in the workspace: `e = a + B p`, `p` the modelled tips (a frame
+    /// mismatch).
+    fn workspace(&self, tips: &[[f64; 3]]) -> Statement {
+        let px: Vec<Vec<f64>> = (0..3)
+            .map(|a| tips.iter().map(|p| p[a]).collect())
+            .collect();
+        let ws = explained(
+            self.e,
+            &[
+                self.ones.clone(),
+                px[0].clone(),
+                px[1].clone(),
+                px[2].clone(),
+            ],
+            self.mask,
+        );
+        Statement {
+            kind: "workspace".into(),
+            feature: "tip position".into(),
+            explained: ws,
+            text: format!(
+                "varies linearly over the workspace (an affine map of the tip position explains \
+                 {:.0}% of the squared error: a frame mismatch looks like this)",
+                100.0 * ws
+            ),
         }
     }
-    // workspace position
-    let px: Vec<Vec<f64>> = (0..3)
-        .map(|a| tips.iter().map(|p| p[a]).collect())
-        .collect();
-    let ws = explained(
-        e,
-        &[ones, px[0].clone(), px[1].clone(), px[2].clone()],
-        mask,
-    );
-    out.push(Statement {
-        kind: "workspace".into(),
-        feature: "tip position".into(),
-        explained: ws,
-        text: format!(
-            "varies linearly over the workspace (an affine map of the tip position explains \
-             {:.0}% of the squared error: a frame mismatch looks like this)",
-            100.0 * ws
-        ),
-    });
-    out.sort_by(|a, b| b.explained.total_cmp(&a.explained));
-    out
 }
 
 fn spread_of(v: &[f64], mask: &[bool]) -> f64 {

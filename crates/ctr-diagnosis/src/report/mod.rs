@@ -328,8 +328,9 @@ fn finding_words(f: &Finding) -> String {
         f.where_,
         f.heldout_rms_mm_before,
         f.heldout_rms_mm_after,
-        f.heldout_rms_deg
-            .map_or(String::new(), |[a, b]| format!("; tip angle {a:.2} instead of {b:.2} deg")),
+        f.heldout_rms_deg.map_or(String::new(), |[a, b]| format!(
+            "; tip angle {a:.2} instead of {b:.2} deg"
+        )),
         f.rms_mm_before,
         f.rms_mm_after
     );
@@ -344,7 +345,13 @@ fn finding_words(f: &Finding) -> String {
         let others: Vec<String> = f
             .equally_explained_by
             .iter()
-            .map(|a| format!("{} ({:.3} mm held out)", a.effect.as_str(), a.heldout_rms_mm))
+            .map(|a| {
+                format!(
+                    "{} ({:.3} mm held out)",
+                    a.effect.as_str(),
+                    a.heldout_rms_mm
+                )
+            })
             .collect();
         s += &format!(
             "  equally: {} explain{} this residual as well as {}: the data do not tell them \
@@ -362,10 +369,7 @@ fn finding_words(f: &Finding) -> String {
 /// angle beside them when the recording's angular columns enter the residual.
 pub(crate) fn held_words(fig: &Figures) -> String {
     match fig.angular {
-        Some(a) => format!(
-            "{:.3} mm, {:.2} deg",
-            fig.heldout_rms_mm, a.heldout_rms_deg
-        ),
+        Some(a) => format!("{:.3} mm, {:.2} deg", fig.heldout_rms_mm, a.heldout_rms_deg),
         None => format!("{:.3} mm", fig.heldout_rms_mm),
     }
 }

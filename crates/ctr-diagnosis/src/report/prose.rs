@@ -4,7 +4,7 @@
 use crate::candidates::EffectId;
 use crate::report::{Figures, Noise};
 use ctr_analysis::model::ModelSpec;
-use ctr_formats::Recording;
+use ctr_formats::{Clearance, Friction, Latency, Recording};
 use std::collections::BTreeMap;
 
 /// The effect's table of the robot file, as JSON.
@@ -40,60 +40,8 @@ pub(crate) fn explain(c: EffectId, m: &ModelSpec) -> String {
         EffectId::Torsion => "The model leaves out torsion: the tubes twist along their \
             length, so the relative angles at the tips differ from the commanded ones."
             .into(),
-        EffectId::Friction => {
-            let f = e.friction.as_ref().expect("written by the fit");
-            let mut s = String::from(
-                "The model leaves out friction between the tubes: the tip depends on the \
-                 direction of motion (hysteresis)",
-            );
-            for (i, w) in f.rotation_play_deg.iter().enumerate() {
-                s += &format!(
-                    "; the rotation of tube {} relative to tube {} lags by a play of \
-                     +/-{w:.2} deg",
-                    i + 2,
-                    i + 1
-                );
-            }
-            if f.feed_play_mm.iter().any(|w| *w > 0.0) {
-                s += &format!("; feed play per tube {}", list(&f.feed_play_mm, " mm"));
-            }
-            s + "."
-        }
-        EffectId::Clearance => {
-            let c = e.clearance.as_ref().expect("written by the fit");
-            let mut parts = Vec::new();
-            for (i, t) in c.table_deg.iter().enumerate() {
-                let (k, max) = t
-                    .iter()
-                    .enumerate()
-                    .fold(
-                        (0, f64::NEG_INFINITY),
-                        |a, (k, v)| if *v > a.1 { (k, *v) } else { a },
-                    );
-                parts.push(format!(
-                    "tube {} leaves tube {}'s tip deflected by up to {max:.2} deg, largest at a \
-                     relative angle of {:.0} deg (a table of {} values over one turn)",
-                    i + 2,
-                    i + 1,
-                    360.0 * k as f64 / t.len() as f64,
-                    t.len()
-                ));
-            }
-            for i in 0..c.max_deflection_deg.len() {
-                parts.push(format!(
-                    "tube {} leaves tube {}'s tip deflected by up to {:.2} deg, largest at a \
-                     relative angle of {:.0} deg",
-                    i + 2,
-                    i + 1,
-                    c.max_deflection_deg[i],
-                    c.peak_deg[i]
-                ));
-            }
-            format!(
-                "The model leaves out the clearance between the tubes: {}.",
-                parts.join("; ")
-            )
-        }
+        EffectId::Friction => friction_words(e.friction.as_ref().expect("written by the fit")),
+        EffectId::Clearance => clearance_words(e.clearance.as_ref().expect("written by the fit")),
         EffectId::Gravity => {
             let g = e.gravity.as_ref().expect("written by the fit");
             format!(
@@ -139,22 +87,7 @@ pub(crate) fn explain(c: EffectId, m: &ModelSpec) -> String {
                 list(&p.radius_factor, "")
             )
         }
-        EffectId::Latency => {
-            let l = e.latency.expect("written by the fit");
-            if l.tau_s >= 0.0 {
-                format!(
-                    "The measured tip lags the commanded joints by {:.3} s (actuator \
-                     tracking or tracker delay).",
-                    l.tau_s
-                )
-            } else {
-                format!(
-                    "The measured tip leads the commanded joints by {:.3} s (the time \
-                     stamps are shifted).",
-                    -l.tau_s
-                )
-            }
-        }
+        EffectId::Latency => latency_words(e.latency.expect("written by the fit")),
         EffectId::SensorOffset => {
             let s = e.sensor_offset.expect("written by the fit");
             format!(
@@ -172,6 +105,80 @@ pub(crate) fn explain(c: EffectId, m: &ModelSpec) -> String {
                 list(&s.rotation_axis, "")
             )
         }
+    }
+}
+
+/// The friction finding in words: the play of each relative rotation, and of the
+/// feeds where there is one.
+fn friction_words(f: &Friction) -> String {
+    let mut s = String::from(
+        "The model leaves out friction between the tubes: the tip depends on the \
+         direction of motion (hysteresis)",
+    );
+    for (i, w) in f.rotation_play_deg.iter().enumerate() {
+        s += &format!(
+            "; the rotation of tube {} relative to tube {} lags by a play of \
+             +/-{w:.2} deg",
+            i + 2,
+            i + 1
+        );
+    }
+    if f.feed_play_mm.iter().any(|w| *w > 0.0) {
+        s += &format!("; feed play per tube {}", list(&f.feed_play_mm, " mm"));
+    }
+    s + "."
+}
+
+/// The clearance finding in words: for each pair of tubes, the largest deflection and
+/// the relative angle where it peaks (from the table, or the cosine profile).
+fn clearance_words(c: &Clearance) -> String {
+    let mut parts = Vec::new();
+    for (i, t) in c.table_deg.iter().enumerate() {
+        let (k, max) =
+            t.iter().enumerate().fold(
+                (0, f64::NEG_INFINITY),
+                |a, (k, v)| if *v > a.1 { (k, *v) } else { a },
+            );
+        parts.push(format!(
+            "tube {} leaves tube {}'s tip deflected by up to {max:.2} deg, largest at a \
+             relative angle of {:.0} deg (a table of {} values over one turn)",
+            i + 2,
+            i + 1,
+            360.0 * k as f64 / t.len() as f64,
+            t.len()
+        ));
+    }
+    for i in 0..c.max_deflection_deg.len() {
+        parts.push(format!(
+            "tube {} leaves tube {}'s tip deflected by up to {:.2} deg, largest at a \
+             relative angle of {:.0} deg",
+            i + 2,
+            i + 1,
+            c.max_deflection_deg[i],
+            c.peak_deg[i]
+        ));
+    }
+    format!(
+        "The model leaves out the clearance between the tubes: {}.",
+        parts.join("; ")
+    )
+}
+
+/// The latency finding in words: the measured tip lags the commands, or leads them
+/// (time stamps shifted).
+fn latency_words(l: Latency) -> String {
+    if l.tau_s >= 0.0 {
+        format!(
+            "The measured tip lags the commanded joints by {:.3} s (actuator \
+             tracking or tracker delay).",
+            l.tau_s
+        )
+    } else {
+        format!(
+            "The measured tip leads the commanded joints by {:.3} s (the time \
+             stamps are shifted).",
+            -l.tau_s
+        )
     }
 }
 

@@ -67,7 +67,7 @@ pub(crate) mod unmodelled;
 pub use crate::synth::unmodelled::{Unmodelled, WANDER_COMPONENTS, WANDER_PERIOD_SPAN};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
-use ctr_analysis::simulate::{predict, SimError};
+use ctr_analysis::simulate::{predict, Prediction, SimError};
 use ctr_formats::joint_columns;
 use ctr_formats::{format_float, AngularColumns, RecordedRow, Recording, Run};
 use std::io::{self, Write};
@@ -485,13 +485,40 @@ pub fn record(
     measure(world, commanded, spec, &mut Rng::new(spec.seed))
 }
 
+/// Records `world` commanded through the runs `commanded` as a tracker measures it:
+/// the rows as commanded, the world's tips at the actual joints, the tracker's noise
+/// and outliers added, and the orientation where the tracker measures one.
 fn measure(
     world: &ModelSpec,
     commanded: &[CommandedRun],
     spec: &SynthSpec,
     rng: &mut Rng,
 ) -> Result<Synthetic, SimError> {
-    let n = world.robot.n_tubes();
+    let mut recording = as_commanded(world.robot.n_tubes(), commanded, spec);
+    let pred = world_tips(world, &mut recording, spec)?;
+    let (noise, outlier_rows) = tracker_noise(spec, rng, recording.rows.len());
+    for ((row, p), e) in recording.rows.iter_mut().zip(&pred.p).zip(&noise) {
+        row.p = [p[0] + e[0], p[1] + e[1], p[2] + e[2]];
+    }
+    if let Some(columns) = spec.angular {
+        let sigma = spec.angular_noise_sigma_deg.to_radians();
+        for (row, q) in recording.rows.iter_mut().zip(&pred.q) {
+            crate::start::angular::measure(row, columns, q, sigma, rng);
+        }
+    }
+    Ok(Synthetic {
+        recording,
+        clean: pred.p,
+        noise,
+        outlier_rows,
+        failed: pred.failed,
+    })
+}
+
+/// The recording of the runs `commanded` of a robot with `n` tubes as commanded: one
+/// row per joint vector every `spec.sample_period_s`, the runs `spec.run_gap_s` apart,
+/// tips still zero.
+fn as_commanded(n: usize, commanded: &[CommandedRun], spec: &SynthSpec) -> Recording {
     let mut rows = Vec::new();
     let mut runs = Vec::new();
     let mut t0 = 0.0;
@@ -517,7 +544,7 @@ fn measure(
         });
         t0 = t + spec.run_gap_s;
     }
-    let mut recording = Recording {
+    Recording {
         file: spec.file.clone(),
         n_tubes: n,
         rows,
@@ -525,16 +552,26 @@ fn measure(
         has_time: true,
         has_force: false,
         angular: None,
-    };
+    }
+}
+
+/// The world's tips (and frames) on every row of `recording`, what a perfect tracker
+/// measures: the world moves with the actual joints (the unmodelled actuation applied),
+/// the recording keeps the commanded ones; the unmodelled measurement effects applied
+/// to the tips.
+fn world_tips(
+    world: &ModelSpec,
+    recording: &mut Recording,
+    spec: &SynthSpec,
+) -> Result<Prediction, SimError> {
     let all: Vec<usize> = (0..recording.runs.len()).collect();
-    // the world moves with the actual joints; the recording keeps the commanded ones
     let commanded_q: Vec<Vec<f64>> = recording.rows.iter().map(|r| r.q.clone()).collect();
     for row in &mut recording.rows {
         for u in &spec.unmodelled {
             u.actuate(&mut row.q);
         }
     }
-    let mut pred = predict(world, &recording, &all)?;
+    let mut pred = predict(world, recording, &all)?;
     for (row, q) in recording.rows.iter_mut().zip(commanded_q) {
         row.q = q;
     }
@@ -543,8 +580,13 @@ fn measure(
             u.measure(p, row.t_s);
         }
     }
+    Ok(pred)
+}
 
-    let total = recording.rows.len();
+/// The tracker's error on each of `total` rows: normal noise of `spec.noise_sigma_mm`
+/// per component, plus a jump of `spec.outlier_size_mm` in a random direction on a
+/// share `spec.outlier_fraction` of the rows drawn at random (returned, ascending).
+fn tracker_noise(spec: &SynthSpec, rng: &mut Rng, total: usize) -> (Vec<[f64; 3]>, Vec<usize>) {
     let mut noise: Vec<[f64; 3]> = (0..total)
         .map(|_| {
             [
@@ -570,22 +612,7 @@ fn measure(
             noise[r][a] += spec.outlier_size_mm * d[a];
         }
     }
-    for ((row, p), e) in recording.rows.iter_mut().zip(&pred.p).zip(&noise) {
-        row.p = [p[0] + e[0], p[1] + e[1], p[2] + e[2]];
-    }
-    if let Some(columns) = spec.angular {
-        let sigma = spec.angular_noise_sigma_deg.to_radians();
-        for (row, q) in recording.rows.iter_mut().zip(&pred.q) {
-            crate::start::angular::measure(row, columns, q, sigma, rng);
-        }
-    }
-    Ok(Synthetic {
-        recording,
-        clean: pred.p,
-        noise,
-        outlier_rows,
-        failed: pred.failed,
-    })
+    (noise, outlier_rows)
 }
 
 /// Writes a recording as the contract's recording CSV: `t_s,run`, the joint columns,

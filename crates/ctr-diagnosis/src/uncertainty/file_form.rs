@@ -23,142 +23,23 @@ impl Assessment {
         len: usize,
         alt: Option<&WithRemainder>,
     ) -> Value {
-        let model = problem.model(&self.x);
-        let template = parameters(b, &model);
-        let mut v0 = Vec::new();
-        leaves(&template, "", &mut v0);
-        let out = |x: &[f64]| -> Vec<f64> {
-            let mut v = Vec::new();
-            leaves(&parameters(b, &problem.model(x)), "", &mut v);
-            v.into_iter().map(|(_, v)| v).collect()
-        };
-        let base: Vec<f64> = v0.iter().map(|(_, v)| *v).collect();
-        let degrees: Vec<bool> = v0.iter().map(|(k, _)| k.contains("_deg")).collect();
-        let unwrap = |o: usize, v: f64| -> f64 {
-            if degrees[o] {
-                base[o] + (v - base[o] + 180.0).rem_euclid(360.0) - 180.0
-            } else {
-                v
+        let template = parameters(b, &problem.model(&self.x));
+        let form = FileForm::new(self, problem, b, at, len, &template);
+        let profiled = self.profiled_ends(&form);
+        let mut ints: Vec<[Option<f64>; 2]> = Vec::with_capacity(form.base.len());
+        for o in 0..form.base.len() {
+            let base = form.base[o];
+            let deps = form.deps(o);
+            let mut int = self.mapped_interval(&form, o, &deps);
+            if let Some(v) = profiled.end(o, -1.0) {
+                int[0] = finite(v.min(base));
             }
-        };
-        // derivatives of the file values with respect to the block's parameters
-        let mut g = DMatrix::<f64>::zeros(base.len(), len);
-        for j in 0..len {
-            let h = OUTPUT_STEP * self.steps[at + j];
-            let mut x = self.x.clone();
-            x[at + j] += h;
-            for (o, v) in out(&x).into_iter().enumerate().take(base.len()) {
-                g[(o, j)] = (unwrap(o, v) - base[o]) / h;
-            }
-        }
-        let deps_of = |o: usize| -> Vec<usize> {
-            let row = g.row(o);
-            let big = row.amax();
-            (0..len)
-                .filter(|&j| big > 0.0 && row[j].abs() > 1e-9 * big)
-                .collect()
-        };
-        let unwrapped = |x: &[f64]| -> Vec<f64> {
-            out(x)
-                .into_iter()
-                .enumerate()
-                .map(|(o, v)| unwrap(o, v))
-                .collect()
-        };
-        // each identified output's ends checked against the cost (profiled where the
-        // Wald interval misreads it), both sides of every output in parallel
-        let tasks: Vec<(usize, f64)> = (0..base.len())
-            .filter(|&o| {
-                let deps = deps_of(o);
-                !deps.is_empty() && deps.iter().all(|&j| !self.unidentified[at + j])
-            })
-            .flat_map(|o| [(o, -1.0), (o, 1.0)])
-            .collect();
-        let ends = ctr_formats::parallel::map(&tasks, problem.threads.max(1), |&(o, sign)| {
-            let mut a = DVector::<f64>::zeros(self.x.len());
-            for j in 0..len {
-                a[at + j] = g[(o, j)];
-            }
-            let deps: Vec<usize> = deps_of(o).into_iter().map(|j| at + j).collect();
-            self.profile_end(problem, &unwrapped, o, &a, &deps, sign)
-                .value
-        });
-        let profiled = |o: usize, sign: f64| -> Option<f64> {
-            tasks
-                .iter()
-                .position(|&(p, s)| p == o && s == sign)
-                .and_then(|k| ends[k])
-        };
-        let mut ints: Vec<[Option<f64>; 2]> = Vec::with_capacity(base.len());
-        for o in 0..base.len() {
-            let row = g.row(o);
-            let deps = deps_of(o);
-            let finite = |v: f64| v.is_finite().then_some(v);
-            let mut int = match deps.as_slice() {
-                [] => [Some(base[o]), Some(base[o])],
-                [j] => {
-                    let (lo, hi) = self.interval(at + j);
-                    let mut ends = vec![base[o]];
-                    let mut open = false;
-                    for end in [lo, hi] {
-                        if end.is_finite() {
-                            let mut x = self.x.clone();
-                            x[at + j] = end;
-                            ends.push(unwrap(o, out(&x)[o]));
-                        } else {
-                            open = true;
-                        }
-                    }
-                    if open {
-                        [None, None]
-                    } else {
-                        let lo = ends.iter().copied().fold(f64::INFINITY, f64::min);
-                        let hi = ends.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                        [finite(lo), finite(hi)]
-                    }
-                }
-                _ if deps.iter().any(|&j| self.unidentified[at + j]) => [None, None],
-                _ => {
-                    let gr = row.transpose();
-                    let sub = self.cov.view((at, at), (len, len));
-                    let half = self.t * (gr.transpose() * sub * &gr)[(0, 0)].max(0.0).sqrt();
-                    [finite(base[o] - half), finite(base[o] + half)]
-                }
-            };
-            if let Some(v) = profiled(o, -1.0) {
-                int[0] = finite(v.min(base[o]));
-            }
-            if let Some(v) = profiled(o, 1.0) {
-                int[1] = finite(v.max(base[o]));
+            if let Some(v) = profiled.end(o, 1.0) {
+                int[1] = finite(v.max(base));
             }
             // joined with the interval of the parameters refitted with the remainder
             if let (Some(alt), [lo, hi]) = (alt, &mut int) {
-                let joined = match deps.as_slice() {
-                    [] => None,
-                    _ if deps.iter().any(|&j| self.unidentified[at + j]) => None,
-                    [j] => {
-                        let (blo, bhi) = self.bounds[at + j];
-                        let half = self.t * alt.cov[(at + j, at + j)].max(0.0).sqrt();
-                        let mut ends = Vec::new();
-                        for end in [alt.x[at + j] - half, alt.x[at + j] + half] {
-                            let mut x = self.x.clone();
-                            x[at + j] = end.clamp(blo, bhi);
-                            ends.push(unwrap(o, out(&x)[o]));
-                        }
-                        Some((
-                            ends.iter().copied().fold(f64::INFINITY, f64::min),
-                            ends.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-                        ))
-                    }
-                    _ => {
-                        let gr = row.transpose();
-                        let sub = alt.cov.view((at, at), (len, len));
-                        let half = self.t * (gr.transpose() * sub * &gr)[(0, 0)].max(0.0).sqrt();
-                        let centre = unwrap(o, out(&alt.x)[o]);
-                        Some((centre - half, centre + half))
-                    }
-                };
-                if let Some((l, h)) = joined {
+                if let Some((l, h)) = self.remainder_interval(&form, alt, o, &deps) {
                     *lo = lo.and_then(|v| finite(v.min(l)));
                     *hi = hi.and_then(|v| finite(v.max(h)));
                 }
@@ -168,4 +49,232 @@ impl Assessment {
         let mut it = ints.into_iter();
         replace(&template, &mut it)
     }
+
+    /// Each identified output's ends checked against the cost (profiled where the Wald
+    /// interval misreads it), both sides of every output in parallel.
+    fn profiled_ends(&self, form: &FileForm) -> Profiled {
+        let at = form.at;
+        let tasks: Vec<(usize, f64)> = (0..form.base.len())
+            .filter(|&o| {
+                let deps = form.deps(o);
+                !deps.is_empty() && deps.iter().all(|&j| !self.unidentified[at + j])
+            })
+            .flat_map(|o| [(o, -1.0), (o, 1.0)])
+            .collect();
+        let unwrapped = |x: &[f64]| form.unwrapped(x);
+        let threads = form.problem.threads.max(1);
+        let ends = ctr_formats::parallel::map(&tasks, threads, |&(o, sign)| {
+            let mut a = DVector::<f64>::zeros(self.x.len());
+            for j in 0..form.len() {
+                a[at + j] = form.g[(o, j)];
+            }
+            let deps: Vec<usize> = form.deps(o).into_iter().map(|j| at + j).collect();
+            self.profile_end(form.problem, &unwrapped, o, &a, &deps, sign)
+                .value
+        });
+        Profiled { tasks, ends }
+    }
+
+    /// The Wald interval of output `o` (depending on the block's parameters `deps`):
+    /// one parameter's interval mapped through the output (its end points), the delta
+    /// method where it depends on several, open where one of them is not identified.
+    fn mapped_interval(&self, form: &FileForm, o: usize, deps: &[usize]) -> [Option<f64>; 2] {
+        let (at, base) = (form.at, form.base[o]);
+        match deps {
+            [] => [Some(base), Some(base)],
+            [j] => {
+                let (lo, hi) = self.interval(at + j);
+                let mut ends = vec![base];
+                let mut open = false;
+                for end in [lo, hi] {
+                    if end.is_finite() {
+                        let mut x = self.x.clone();
+                        x[at + j] = end;
+                        ends.push(form.unwrap(o, form.raw(&x)[o]));
+                    } else {
+                        open = true;
+                    }
+                }
+                if open {
+                    [None, None]
+                } else {
+                    let lo = ends.iter().copied().fold(f64::INFINITY, f64::min);
+                    let hi = ends.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    [finite(lo), finite(hi)]
+                }
+            }
+            _ if deps.iter().any(|&j| self.unidentified[at + j]) => [None, None],
+            _ => {
+                let half = self.t * delta_variance(&self.cov, form, o).max(0.0).sqrt();
+                [finite(base - half), finite(base + half)]
+            }
+        }
+    }
+
+    /// The interval of output `o` (depending on the block's parameters `deps`) with
+    /// the parameters `alt` refitted with the unexplained remainder's terms (`None`
+    /// where it depends on none or on one not identified).
+    fn remainder_interval(
+        &self,
+        form: &FileForm,
+        alt: &WithRemainder,
+        o: usize,
+        deps: &[usize],
+    ) -> Option<(f64, f64)> {
+        let at = form.at;
+        match deps {
+            [] => None,
+            _ if deps.iter().any(|&j| self.unidentified[at + j]) => None,
+            [j] => {
+                let (blo, bhi) = self.bounds[at + j];
+                let half = self.t * alt.cov[(at + j, at + j)].max(0.0).sqrt();
+                let mut ends = Vec::new();
+                for end in [alt.x[at + j] - half, alt.x[at + j] + half] {
+                    let mut x = self.x.clone();
+                    x[at + j] = end.clamp(blo, bhi);
+                    ends.push(form.unwrap(o, form.raw(&x)[o]));
+                }
+                Some((
+                    ends.iter().copied().fold(f64::INFINITY, f64::min),
+                    ends.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                ))
+            }
+            _ => {
+                let half = self.t * delta_variance(&alt.cov, form, o).max(0.0).sqrt();
+                let centre = form.unwrap(o, form.raw(&alt.x)[o]);
+                Some((centre - half, centre + half))
+            }
+        }
+    }
+}
+
+/// One block in the robot file's form as a function of the fitted parameters: the
+/// numbers of its table (in [`leaves`] order), angles in degrees unwrapped to within
+/// 180 deg of their value at the fit, and their derivatives there.
+struct FileForm<'a> {
+    problem: &'a Problem<'a>,
+    b: EffectId,
+    /// The block's first parameter.
+    at: usize,
+    /// The file values at the fit.
+    base: Vec<f64>,
+    /// Whether each file value is an angle in degrees.
+    degrees: Vec<bool>,
+    /// The derivatives of the file values (rows) with respect to the block's
+    /// parameters (columns).
+    g: DMatrix<f64>,
+}
+
+impl<'a> FileForm<'a> {
+    /// Block `b` of `problem` (parameters `at..at + len`) about `fit`, where its table
+    /// is `template`.
+    fn new(
+        fit: &Assessment,
+        problem: &'a Problem<'a>,
+        b: EffectId,
+        at: usize,
+        len: usize,
+        template: &Value,
+    ) -> Self {
+        let mut v0 = Vec::new();
+        leaves(template, "", &mut v0);
+        let mut form = FileForm {
+            problem,
+            b,
+            at,
+            base: v0.iter().map(|(_, v)| *v).collect(),
+            degrees: v0.iter().map(|(k, _)| k.contains("_deg")).collect(),
+            g: DMatrix::zeros(0, 0),
+        };
+        form.g = form.derivatives(fit, len);
+        form
+    }
+
+    /// The block's parameters.
+    fn len(&self) -> usize {
+        self.g.ncols()
+    }
+
+    /// The file values at parameters `x`, as the file writes them.
+    fn raw(&self, x: &[f64]) -> Vec<f64> {
+        let mut v = Vec::new();
+        leaves(&parameters(self.b, &self.problem.model(x)), "", &mut v);
+        v.into_iter().map(|(_, v)| v).collect()
+    }
+
+    /// File value `o` equal to `v`, an angle unwrapped to within 180 deg of its value
+    /// at the fit.
+    fn unwrap(&self, o: usize, v: f64) -> f64 {
+        let base = &self.base;
+        if self.degrees[o] {
+            base[o] + (v - base[o] + 180.0).rem_euclid(360.0) - 180.0
+        } else {
+            v
+        }
+    }
+
+    /// The file values at parameters `x`, angles unwrapped.
+    fn unwrapped(&self, x: &[f64]) -> Vec<f64> {
+        self.raw(x)
+            .into_iter()
+            .enumerate()
+            .map(|(o, v)| self.unwrap(o, v))
+            .collect()
+    }
+
+    /// The derivatives of the file values with respect to the block's parameters, by
+    /// forward differences at [`OUTPUT_STEP`] of each parameter's scale.
+    fn derivatives(&self, fit: &Assessment, len: usize) -> DMatrix<f64> {
+        let base = &self.base;
+        let mut g = DMatrix::<f64>::zeros(base.len(), len);
+        for j in 0..len {
+            let h = OUTPUT_STEP * fit.steps[self.at + j];
+            let mut x = fit.x.clone();
+            x[self.at + j] += h;
+            for (o, v) in self.raw(&x).into_iter().enumerate().take(base.len()) {
+                g[(o, j)] = (self.unwrap(o, v) - base[o]) / h;
+            }
+        }
+        g
+    }
+
+    /// The block's parameters (from 0) file value `o` depends on.
+    fn deps(&self, o: usize) -> Vec<usize> {
+        let row = self.g.row(o);
+        let big = row.amax();
+        (0..self.len())
+            .filter(|&j| big > 0.0 && row[j].abs() > 1e-9 * big)
+            .collect()
+    }
+}
+
+/// The ends of the outputs' intervals found along their profiles.
+struct Profiled {
+    /// The output and side (`-1` low, `+1` high) of each end profiled.
+    tasks: Vec<(usize, f64)>,
+    /// Where each end is (`None`: the Wald end stands).
+    ends: Vec<Option<f64>>,
+}
+
+impl Profiled {
+    /// The end of output `o` on side `sign`, where profiled and moved.
+    fn end(&self, o: usize, sign: f64) -> Option<f64> {
+        self.tasks
+            .iter()
+            .position(|&(p, s)| p == o && s == sign)
+            .and_then(|k| self.ends[k])
+    }
+}
+
+/// The delta method's variance `g^T Sigma g` of file value `o`, `Sigma` the block's
+/// part of the covariance `cov`.
+fn delta_variance(cov: &DMatrix<f64>, form: &FileForm, o: usize) -> f64 {
+    let gr = form.g.row(o).transpose();
+    let sub = cov.view((form.at, form.at), (form.len(), form.len()));
+    (gr.transpose() * sub * &gr)[(0, 0)]
+}
+
+/// `v` where finite.
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
 }

@@ -220,46 +220,53 @@ fn correlation_length(r: &[[f64; 3]], segs: &[std::ops::Range<usize>]) -> usize 
     MAX_LAG_ROWS
 }
 
-impl Assessment {
-    /// `x` with each parameter clipped to the fit's bounds.
-    pub(crate) fn clamped(&self, mut x: Vec<f64>) -> Vec<f64> {
-        for (v, &(lo, hi)) in x.iter_mut().zip(&self.bounds) {
-            *v = v.clamp(lo, hi);
+/// The information `H = J^T W J` of the fit rows (`w` one weight per 3 rows of
+/// `jac`, over `np` parameters).
+fn information(jac: &DMatrix<f64>, w: &[f64], np: usize) -> DMatrix<f64> {
+    let mut h = DMatrix::<f64>::zeros(np, np);
+    for (row, wr) in w.iter().enumerate() {
+        for a in 0..3 {
+            let ji = jac.row(3 * row + a);
+            h += (ji.transpose() * ji) * *wr;
         }
-        x
     }
+    h
+}
 
-    /// The uncertainty of `problem`'s fit at `x` (`None` when it cannot be simulated
-    /// there or has no parameter); `nominal` is what the parameters are without the
-    /// findings (the user's model).
-    pub fn new(problem: &Problem, x: &[f64], nominal: &[f64]) -> Option<Self> {
-        let np = x.len();
-        if np == 0 {
-            return None;
-        }
-        let p0 = problem.predictions(x)?;
-        let e = problem.errors(&p0);
-        let (cost, w) = problem.cost(&e);
-        let jac = problem.jacobian(x, &p0)?;
-        let rows = problem.rows.len();
-        let mut h = DMatrix::<f64>::zeros(np, np);
-        for (row, wr) in w.iter().enumerate() {
-            for a in 0..3 {
-                let ji = jac.row(3 * row + a);
-                h += (ji.transpose() * ji) * *wr;
-            }
-        }
-        let (h_pinv, null_scaled, d) = pseudo_inverse(&h);
-        let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
-        let identified = np - null_scaled.len();
-        // classical: the weighted residual variance per component
-        let data = 3 * rows;
-        let s2: f64 = (0..rows)
-            .map(|k| w[k] * (0..3).map(|a| e[3 * k + a].powi(2)).sum::<f64>())
-            .sum::<f64>()
-            / (data.saturating_sub(identified)).max(1) as f64;
-        let classic = &h_pinv * s2;
-        // cluster-robust sandwich over blocks of consecutive fit rows
+/// The classical weighted residual variance per component of the `rows` fit rows,
+/// `s^2 = sum_i w_i |e_i|^2 / (N - p)` (`p` the identified directions).
+fn residual_variance(e: &[f64], w: &[f64], rows: usize, identified: usize) -> f64 {
+    let data = 3 * rows;
+    (0..rows)
+        .map(|k| w[k] * (0..3).map(|a| e[3 * k + a].powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / (data.saturating_sub(identified)).max(1) as f64
+}
+
+/// The cluster-robust sandwich covariance over blocks of consecutive fit rows.
+struct Sandwich {
+    /// `H^+ (G/(G-1) sum_g u_g u_g^T) H^+` (the classical covariance when there are
+    /// fewer than two clusters).
+    cov: DMatrix<f64>,
+    /// The clusters `G`.
+    clusters: usize,
+    /// The rows of a cluster (twice the residual's correlation length).
+    cluster_rows: usize,
+}
+
+impl Sandwich {
+    /// The sandwich of `problem`'s fit: Jacobian `jac`, errors `e`, weights `w`,
+    /// `h_pinv` the pseudo-inverse of the information and `classic` the classical
+    /// covariance.
+    fn new(
+        problem: &Problem,
+        jac: &DMatrix<f64>,
+        e: &[f64],
+        w: &[f64],
+        h_pinv: &DMatrix<f64>,
+        classic: &DMatrix<f64>,
+    ) -> Self {
+        let (np, rows) = (jac.ncols(), problem.rows.len());
         let segs = segments(problem.rec, &problem.rows);
         let weighted: Vec<[f64; 3]> = (0..rows)
             .map(|k| [w[k] * e[3 * k], w[k] * e[3 * k + 1], w[k] * e[3 * k + 2]])
@@ -284,71 +291,135 @@ impl Assessment {
             }
         }
         let g = clusters as f64;
-        let sandwich = if clusters >= 2 {
-            &h_pinv * (meat * (g / (g - 1.0))) * &h_pinv
+        let cov = if clusters >= 2 {
+            h_pinv * (meat * (g / (g - 1.0))) * h_pinv
         } else {
             classic.clone()
         };
-        // the larger variance of the two, the classical correlations
-        let sd: Vec<f64> = (0..np)
-            .map(|j| classic[(j, j)].max(sandwich[(j, j)]).max(0.0).sqrt())
-            .collect();
-        let mut cov = DMatrix::<f64>::zeros(np, np);
-        for i in 0..np {
-            for j in 0..np {
-                let denom = (classic[(i, i)] * classic[(j, j)]).sqrt();
-                let r = if denom > 0.0 {
-                    classic[(i, j)] / denom
-                } else {
-                    f64::from(u8::from(i == j))
-                };
-                cov[(i, j)] = r * sd[i] * sd[j];
-            }
+        Sandwich {
+            cov,
+            clusters,
+            cluster_rows: len,
         }
+    }
+}
+
+/// The covariance kept: each parameter's larger variance of the classical and the
+/// sandwich, with the classical correlations.
+fn larger_variance(classic: &DMatrix<f64>, sandwich: &DMatrix<f64>) -> DMatrix<f64> {
+    let np = classic.nrows();
+    let sd: Vec<f64> = (0..np)
+        .map(|j| classic[(j, j)].max(sandwich[(j, j)]).max(0.0).sqrt())
+        .collect();
+    let mut cov = DMatrix::<f64>::zeros(np, np);
+    for i in 0..np {
+        for j in 0..np {
+            let denom = (classic[(i, i)] * classic[(j, j)]).sqrt();
+            let r = if denom > 0.0 {
+                classic[(i, j)] / denom
+            } else {
+                f64::from(u8::from(i == j))
+            };
+            cov[(i, j)] = r * sd[i] * sd[j];
+        }
+    }
+    cov
+}
+
+/// `x` set to the nominal along the directions not identified `null_scaled` (scaled
+/// by `d`): in scaled units `x_s - V V^T (x_s - nominal_s)`, kept only where it stays
+/// within the bounds and the tips really do not move (the cost stays at `cost`).
+fn tied_to_nominal(
+    problem: &Problem,
+    x: &[f64],
+    nominal: &[f64],
+    null_scaled: &[DVector<f64>],
+    d: &[f64],
+    cost: f64,
+) -> Vec<f64> {
+    let np = x.len();
+    let diff = DVector::from_iterator(np, (0..np).map(|j| (x[j] - nominal[j]) / d[j]));
+    let mut shift = DVector::<f64>::zeros(np);
+    for v in null_scaled {
+        shift += v * v.dot(&diff);
+    }
+    let tied: Vec<f64> = (0..np).map(|j| x[j] - d[j] * shift[j]).collect();
+    let bounded = tied.iter().enumerate().all(|(j, v)| {
+        let (lo, hi) = problem.scale(j).1;
+        *v >= lo && *v <= hi
+    });
+    if bounded
+        && problem
+            .cost_at(&tied)
+            .is_some_and(|c| c <= cost * (1.0 + 1e-6) + 1e-12)
+    {
+        tied
+    } else {
+        x.to_vec()
+    }
+}
+
+/// The method, in words: `clusters` blocks of `len` consecutive fit rows.
+fn method_words(clusters: usize, len: usize) -> String {
+    format!(
+        "95 % intervals x +/- t(0.975, {dof}) sd, sd the larger of the classical \
+         (weighted residual variance x pseudo-inverse of J^T W J) and the cluster-robust \
+         sandwich over {clusters} blocks of {len} consecutive fit rows (twice the \
+         residual's correlation length), J the Jacobian of the robust fit on the fit \
+         rows; clipped to the fit's bounds; file-form values by their parameter's end \
+         points, or the delta method where they depend on several; each end checked \
+         against the robust cost along its linearised profile (the other parameters \
+         following by a Gauss-Newton step) and, where sqrt(deviance)/t there is off \
+         by more than a factor {agrees}, moved to where the profile deviance reaches \
+         t^2 (or to the bound it reaches first); directions whose \
+         scaled information is below {UNIDENTIFIED_EIGEN:e} of the largest are not \
+         identified (their intervals are the fit's bounds)",
+        dof = clusters.saturating_sub(1),
+        agrees = profile::AGREES_WITHIN
+    )
+}
+
+impl Assessment {
+    /// `x` with each parameter clipped to the fit's bounds.
+    pub(crate) fn clamped(&self, mut x: Vec<f64>) -> Vec<f64> {
+        for (v, &(lo, hi)) in x.iter_mut().zip(&self.bounds) {
+            *v = v.clamp(lo, hi);
+        }
+        x
+    }
+
+    /// The uncertainty of `problem`'s fit at `x` (`None` when it cannot be simulated
+    /// there or has no parameter); `nominal` is what the parameters are without the
+    /// findings (the user's model).
+    pub fn new(problem: &Problem, x: &[f64], nominal: &[f64]) -> Option<Self> {
+        let np = x.len();
+        if np == 0 {
+            return None;
+        }
+        let p0 = problem.predictions(x)?;
+        let e = problem.errors(&p0);
+        let (cost, w) = problem.cost(&e);
+        let jac = problem.jacobian(x, &p0)?;
+        let h = information(&jac, &w, np);
+        let (h_pinv, null_scaled, d) = pseudo_inverse(&h);
+        let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
+        let identified = np - null_scaled.len();
+        let s2 = residual_variance(&e, &w, problem.rows.len(), identified);
+        let classic = &h_pinv * s2;
+        let robust = Sandwich::new(problem, &jac, &e, &w, &h_pinv, &classic);
+        let cov = larger_variance(&classic, &robust.cov);
         // directions not identified, in the parameters' units; set to the nominal
         let null: Vec<DVector<f64>> = null_scaled.iter().map(|v| &dm * v).collect();
         let mut unidentified: Vec<bool> = (0..np).map(|j| h[(j, j)] <= 0.0).collect();
         for j in null.iter().flat_map(parts) {
             unidentified[j] = true;
         }
-        let mut xs = x.to_vec();
-        if !null_scaled.is_empty() {
-            // in scaled units, x_s - V V^T (x_s - nominal_s)
-            let diff = DVector::from_iterator(np, (0..np).map(|j| (x[j] - nominal[j]) / d[j]));
-            let mut shift = DVector::<f64>::zeros(np);
-            for v in &null_scaled {
-                shift += v * v.dot(&diff);
-            }
-            let tied: Vec<f64> = (0..np).map(|j| x[j] - d[j] * shift[j]).collect();
-            let bounded = tied.iter().enumerate().all(|(j, v)| {
-                let (lo, hi) = problem.scale(j).1;
-                *v >= lo && *v <= hi
-            });
-            // only where the tips really do not move
-            if bounded
-                && problem
-                    .cost_at(&tied)
-                    .is_some_and(|c| c <= cost * (1.0 + 1e-6) + 1e-12)
-            {
-                xs = tied;
-            }
-        }
-        let method = format!(
-            "95 % intervals x +/- t(0.975, {dof}) sd, sd the larger of the classical \
-             (weighted residual variance x pseudo-inverse of J^T W J) and the cluster-robust \
-             sandwich over {clusters} blocks of {len} consecutive fit rows (twice the \
-             residual's correlation length), J the Jacobian of the robust fit on the fit \
-             rows; clipped to the fit's bounds; file-form values by their parameter's end \
-             points, or the delta method where they depend on several; each end checked \
-             against the robust cost along its linearised profile (the other parameters \
-             following by a Gauss-Newton step) and, where sqrt(deviance)/t there is off \
-             by more than a factor {agrees}, moved to where the profile deviance reaches \
-             t^2 (or to the bound it reaches first); directions whose \
-             scaled information is below {UNIDENTIFIED_EIGEN:e} of the largest are not \
-             identified (their intervals are the fit's bounds)",
-            dof = clusters.saturating_sub(1),
-            agrees = profile::AGREES_WITHIN
-        );
+        let xs = if null_scaled.is_empty() {
+            x.to_vec()
+        } else {
+            tied_to_nominal(problem, x, nominal, &null_scaled, &d, cost)
+        };
+        let clusters = robust.clusters;
         Some(Assessment {
             x: xs,
             nominal: nominal.to_vec(),
@@ -366,7 +437,7 @@ impl Assessment {
             jac,
             reference: std::sync::OnceLock::new(),
             t: t975(clusters.saturating_sub(1)),
-            method,
+            method: method_words(clusters, robust.cluster_rows),
         })
     }
 

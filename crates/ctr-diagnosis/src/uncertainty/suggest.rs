@@ -30,6 +30,7 @@ use crate::report::numbers::sig;
 use crate::report::{ExpectedInterval, JointRun, SuggestedRun};
 use crate::uncertainty::{parts, pseudo_inverse, Assessment, CORRELATED_ABOVE};
 use ctr_formats::{RecordedRow, Recording, Run};
+use nalgebra::DMatrix;
 
 /// An interval wider than this many times the parameter's distance from its nominal
 /// makes it uncertain.
@@ -86,36 +87,58 @@ fn joints(inc: &[f64], theta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// The candidate runs on the ranges `rec` visited.
-fn candidates(rec: &Recording) -> Vec<Candidate> {
-    let n = rec.n_tubes;
-    let inc_of = |q: &[f64]| -> Vec<f64> {
-        (0..n)
-            .map(|k| q[2 * k] - if k == 0 { 0.0 } else { q[2 * k - 2] })
-            .collect()
-    };
-    let mut lo_inc = vec![f64::INFINITY; n];
-    let mut hi_inc = vec![f64::NEG_INFINITY; n];
-    let mut lo_th = vec![f64::INFINITY; n];
-    let mut hi_th = vec![f64::NEG_INFINITY; n];
-    for r in &rec.rows {
-        let inc = inc_of(&r.q);
-        for k in 0..n {
-            lo_inc[k] = lo_inc[k].min(inc[k]);
-            hi_inc[k] = hi_inc[k].max(inc[k]);
-            lo_th[k] = lo_th[k].min(r.q[2 * k + 1]);
-            hi_th[k] = hi_th[k].max(r.q[2 * k + 1]);
+/// The ranges a recording visited: each tube's feed increment (its extension beyond
+/// the next outer tube) and rotation, lowest, highest and middle.
+struct Ranges {
+    lo_inc: Vec<f64>,
+    hi_inc: Vec<f64>,
+    lo_th: Vec<f64>,
+    hi_th: Vec<f64>,
+    mid_inc: Vec<f64>,
+    mid_th: Vec<f64>,
+}
+
+impl Ranges {
+    /// The ranges `rec` visited.
+    fn of(rec: &Recording) -> Self {
+        let n = rec.n_tubes;
+        let inc_of = |q: &[f64]| -> Vec<f64> {
+            (0..n)
+                .map(|k| q[2 * k] - if k == 0 { 0.0 } else { q[2 * k - 2] })
+                .collect()
+        };
+        let mut lo_inc = vec![f64::INFINITY; n];
+        let mut hi_inc = vec![f64::NEG_INFINITY; n];
+        let mut lo_th = vec![f64::INFINITY; n];
+        let mut hi_th = vec![f64::NEG_INFINITY; n];
+        for r in &rec.rows {
+            let inc = inc_of(&r.q);
+            for k in 0..n {
+                lo_inc[k] = lo_inc[k].min(inc[k]);
+                hi_inc[k] = hi_inc[k].max(inc[k]);
+                lo_th[k] = lo_th[k].min(r.q[2 * k + 1]);
+                hi_th[k] = hi_th[k].max(r.q[2 * k + 1]);
+            }
+        }
+        let mid_inc: Vec<f64> = (0..n).map(|k| 0.5 * (lo_inc[k] + hi_inc[k])).collect();
+        let mid_th: Vec<f64> = (0..n).map(|k| 0.5 * (lo_th[k] + hi_th[k])).collect();
+        Ranges {
+            lo_inc,
+            hi_inc,
+            lo_th,
+            hi_th,
+            mid_inc,
+            mid_th,
         }
     }
-    let mid_inc: Vec<f64> = (0..n).map(|k| 0.5 * (lo_inc[k] + hi_inc[k])).collect();
-    let mid_th: Vec<f64> = (0..n).map(|k| 0.5 * (lo_th[k] + hi_th[k])).collect();
-    let rows = SUGGESTED_ROWS;
-    // the middle configuration with one feed increment or rotation set to each value
-    let sweep = |inc: &[f64], slot: Slot, values: Vec<f64>| -> Vec<Vec<f64>> {
+
+    /// The configuration with feed increments `inc` and the middle rotations, with one
+    /// feed increment or rotation set to each value.
+    fn sweep(&self, inc: &[f64], slot: Slot, values: Vec<f64>) -> Vec<Vec<f64>> {
         values
             .into_iter()
             .map(|v| {
-                let (mut inc, mut th) = (inc.to_vec(), mid_th.clone());
+                let (mut inc, mut th) = (inc.to_vec(), self.mid_th.clone());
                 match slot {
                     Slot::Feed(k) => inc[k] = v,
                     Slot::Turn(k) => th[k] = v,
@@ -123,78 +146,102 @@ fn candidates(rec: &Recording) -> Vec<Candidate> {
                 joints(&inc, &th)
             })
             .collect()
-    };
+    }
+}
+
+/// The candidate runs on the ranges `rec` visited.
+fn candidates(rec: &Recording) -> Vec<Candidate> {
+    let ranges = Ranges::of(rec);
+    let mut out = one_joint_alone(&ranges);
+    out.extend(innermost_turns(&ranges));
+    out.push(Candidate {
+        name: "rest at the middle configuration".into(),
+        q: vec![joints(&ranges.mid_inc, &ranges.mid_th); SUGGESTED_ROWS],
+    });
+    out
+}
+
+/// Each tube turned alone over its recorded range and back, and its feed increment
+/// swept alone (the other joints at the middle of their ranges).
+fn one_joint_alone(r: &Ranges) -> Vec<Candidate> {
+    let rows = SUGGESTED_ROWS;
     let mut out = Vec::new();
-    for k in 0..n {
-        if hi_th[k] > lo_th[k] {
+    for k in 0..r.mid_inc.len() {
+        if r.hi_th[k] > r.lo_th[k] {
             out.push(Candidate {
                 name: format!(
                     "turn tube {} alone from {:.0} to {:.0} deg and back (the others at the \
                      middle of their recorded ranges)",
                     k + 1,
-                    lo_th[k],
-                    hi_th[k]
+                    r.lo_th[k],
+                    r.hi_th[k]
                 ),
-                q: sweep(
-                    &mid_inc,
+                q: r.sweep(
+                    &r.mid_inc,
                     Slot::Turn(k),
-                    out_and_back(lo_th[k], hi_th[k], rows),
+                    out_and_back(r.lo_th[k], r.hi_th[k], rows),
                 ),
             });
         }
-        if hi_inc[k] > lo_inc[k] {
+        if r.hi_inc[k] > r.lo_inc[k] {
             out.push(Candidate {
                 name: format!(
                     "feed tube {} alone, its increment from {:.1} to {:.1} mm and back",
                     k + 1,
-                    lo_inc[k],
-                    hi_inc[k]
+                    r.lo_inc[k],
+                    r.hi_inc[k]
                 ),
-                q: sweep(
-                    &mid_inc,
+                q: r.sweep(
+                    &r.mid_inc,
                     Slot::Feed(k),
-                    out_and_back(lo_inc[k], hi_inc[k], rows),
+                    out_and_back(r.lo_inc[k], r.hi_inc[k], rows),
                 ),
             });
         }
     }
-    let last = n - 1;
-    if hi_th[last] > lo_th[last] {
-        out.push(Candidate {
-            name: format!(
-                "turn tube {n} from {:.0} to {:.0} deg and back at full extension (every \
-                 increment at its largest)",
-                lo_th[last], hi_th[last]
-            ),
-            q: sweep(
-                &hi_inc,
-                Slot::Turn(last),
-                out_and_back(lo_th[last], hi_th[last], rows),
-            ),
-        });
-        let quarter = 0.25 * (hi_th[last] - lo_th[last]);
-        let leg = rows / (2 * REVERSALS);
-        let back_and_forth = (0..rows)
-            .map(|i| {
-                let phase = (i % (2 * leg)) as f64 / leg as f64;
-                let u = if phase <= 1.0 { phase } else { 2.0 - phase };
-                mid_th[last] + quarter * (u - 0.5)
-            })
-            .collect();
-        out.push(Candidate {
-            name: format!(
-                "reverse tube {n}'s rotation {REVERSALS} times over {quarter:.0} deg about \
-                 {:.0} deg",
-                mid_th[last]
-            ),
-            q: sweep(&mid_inc, Slot::Turn(last), back_and_forth),
-        });
-    }
-    out.push(Candidate {
-        name: "rest at the middle configuration".into(),
-        q: vec![joints(&mid_inc, &mid_th); rows],
-    });
     out
+}
+
+/// The innermost tube turned over its range at full extension, and turned back and
+/// forth over a quarter of its range [`REVERSALS`] times (none when it was not turned).
+fn innermost_turns(r: &Ranges) -> Vec<Candidate> {
+    let rows = SUGGESTED_ROWS;
+    let n = r.mid_inc.len();
+    let last = n - 1;
+    let turned = r.hi_th[last] > r.lo_th[last];
+    if !turned {
+        return Vec::new();
+    }
+    let full_extension = Candidate {
+        name: format!(
+            "turn tube {n} from {:.0} to {:.0} deg and back at full extension (every \
+             increment at its largest)",
+            r.lo_th[last], r.hi_th[last]
+        ),
+        q: r.sweep(
+            &r.hi_inc,
+            Slot::Turn(last),
+            out_and_back(r.lo_th[last], r.hi_th[last], rows),
+        ),
+    };
+    let quarter = 0.25 * (r.hi_th[last] - r.lo_th[last]);
+    let leg = rows / (2 * REVERSALS);
+    let back_and_forth = (0..rows)
+        .map(|i| {
+            let phase = (i % (2 * leg)) as f64 / leg as f64;
+            let u = if phase <= 1.0 { phase } else { 2.0 - phase };
+            r.mid_th[last] + quarter * (u - 0.5)
+        })
+        .collect();
+    let reversals = Candidate {
+        name: format!(
+            "reverse tube {n}'s rotation {REVERSALS} times over {quarter:.0} deg about \
+             {:.0} deg",
+            r.mid_th[last]
+        ),
+        q: r.sweep(&r.mid_inc, Slot::Turn(last), back_and_forth),
+    };
+    vec![full_extension, reversals]
 }
 
 /// A recording of the run `q` sampled every `period_s` (tips unknown: zeros).
@@ -269,123 +316,18 @@ pub(crate) fn next_run(
     if targets.is_empty() {
         return None;
     }
-    let np = a.x.len();
     let period = if period_s.is_finite() && period_s > 0.0 {
         period_s
     } else {
         DEFAULT_PERIOD_S
     };
-    let (h_pinv, _, _) = pseudo_inverse(&a.information);
-    // the covariance's scale over the classical one (for parameters identified anew)
-    let mut scales: Vec<f64> = (0..np)
-        .filter(|&j| !a.unidentified[j] && h_pinv[(j, j)] > 0.0)
-        .map(|j| a.cov[(j, j)] / h_pinv[(j, j)])
-        .collect();
-    scales.sort_by(f64::total_cmp);
-    let scale = scales.get(scales.len() / 2).copied().unwrap_or(0.0);
-    let mut best: Option<(f64, Candidate, Vec<f64>)> = None;
-    for c in candidates(problem.rec) {
-        let rec = as_recording(problem.rec, &c.name, &c.q, period);
-        let p = Problem {
-            base: problem.base.clone(),
-            blocks: problem.blocks.clone(),
-            rec: &rec,
-            rows: (0..rec.rows.len()).collect(),
-            huber_mm: f64::INFINITY,
-            threads: problem.threads,
-            clearance_table: problem.clearance_table,
-        };
-        let Some(p0) = p.predictions(&a.x) else {
-            continue;
-        };
-        let Some(jac) = p.jacobian(&a.x, &p0) else {
-            continue;
-        };
-        let rows = 3 * rec.rows.len();
-        let jr = jac.rows(0, rows);
-        let h_new = &a.information + (jr.transpose() * jr) * fit_share;
-        let (pinv_new, null_new, _) = pseudo_inverse(&h_new);
-        let mut still = vec![false; np];
-        for j in null_new.iter().flat_map(parts) {
-            still[j] = true;
-        }
-        let mut score = 0.0;
-        let mut var = Vec::with_capacity(targets.len());
-        for &j in &targets {
-            let v = if still[j] {
-                f64::INFINITY
-            } else if a.unidentified[j] {
-                scale * pinv_new[(j, j)]
-            } else {
-                a.cov[(j, j)] * pinv_new[(j, j)] / h_pinv[(j, j)]
-            };
-            score += match (a.unidentified[j], still[j]) {
-                (true, true) => 0.0,
-                (true, false) => NEWLY_IDENTIFIED.ln(),
-                _ => (v / a.cov[(j, j)]).ln(),
-            };
-            var.push(v);
-        }
-        if best.as_ref().is_none_or(|b| score < b.0) {
-            best = Some((score, c, var));
-        }
-    }
-    let (score, c, var) = best?;
+    let design = Design::new(problem, a, &targets, fit_share, period);
+    let (score, c, var) = design.best()?;
     if score > targets.len() as f64 * (MIN_SHRINK * MIN_SHRINK).ln() {
         return None;
     }
-    let interval = |j: usize, v: f64| -> [Option<f64>; 2] {
-        if !v.is_finite() {
-            return [None, None];
-        }
-        let half = a.t * v.sqrt();
-        let (lo, hi) = a.bounds[j];
-        let (lo, hi) = ((a.x[j] - half).max(lo), (a.x[j] + half).min(hi));
-        if a.labels[j].log {
-            [Some(lo.exp()), Some(hi.exp())]
-        } else {
-            [Some(lo), Some(hi)]
-        }
-    };
-    let expected: Vec<ExpectedInterval> = targets
-        .iter()
-        .zip(&var)
-        .map(|(&j, &v)| {
-            let now = if a.unidentified[j] {
-                [None, None]
-            } else {
-                interval(j, a.cov[(j, j)])
-            };
-            let value = if a.labels[j].log {
-                a.x[j].exp()
-            } else {
-                a.x[j]
-            };
-            ExpectedInterval {
-                parameter: a.labels[j].name.clone(),
-                value,
-                ci95_now: now,
-                ci95_expected: interval(j, v),
-            }
-        })
-        .collect();
-    let why = expected
-        .iter()
-        .map(|e| {
-            let show = |ci: [Option<f64>; 2]| match ci {
-                [Some(lo), Some(hi)] => format!("{} to {}", sig(lo), sig(hi)),
-                _ => "not identified".into(),
-            };
-            format!(
-                "{} {} ({} now, {} expected)",
-                e.parameter,
-                sig(e.value),
-                show(e.ci95_now),
-                show(e.ci95_expected)
-            )
-        })
-        .collect::<Vec<_>>()
-        .join("; ");
+    let expected = expected_intervals(a, &targets, &var);
+    let why = why(&expected);
     let t_s = (0..c.q.len()).map(|i| i as f64 * period).collect();
     Some((
         SuggestedRun {
@@ -397,6 +339,185 @@ pub(crate) fn next_run(
         },
         JointRun { t_s, q: c.q },
     ))
+}
+
+/// What a candidate run is judged by: the fit's information and covariance, the
+/// uncertain parameters, and how a run is sampled and how much of it a diagnosis fits.
+struct Design<'a> {
+    problem: &'a Problem<'a>,
+    a: &'a Assessment,
+    /// The uncertain parameters.
+    targets: &'a [usize],
+    /// The share of a recording's rows a diagnosis fits.
+    fit_share: f64,
+    /// The sample period of a run, s.
+    period: f64,
+    /// The pseudo-inverse of the fit's information `H^+`.
+    h_pinv: DMatrix<f64>,
+    /// The covariance's scale over the classical one (for parameters identified anew):
+    /// the median over the identified parameters.
+    scale: f64,
+}
+
+impl<'a> Design<'a> {
+    /// The design for `a`'s uncertain parameters `targets`.
+    fn new(
+        problem: &'a Problem<'a>,
+        a: &'a Assessment,
+        targets: &'a [usize],
+        fit_share: f64,
+        period: f64,
+    ) -> Self {
+        let np = a.x.len();
+        let (h_pinv, _, _) = pseudo_inverse(&a.information);
+        let mut scales: Vec<f64> = (0..np)
+            .filter(|&j| !a.unidentified[j] && h_pinv[(j, j)] > 0.0)
+            .map(|j| a.cov[(j, j)] / h_pinv[(j, j)])
+            .collect();
+        scales.sort_by(f64::total_cmp);
+        let scale = scales.get(scales.len() / 2).copied().unwrap_or(0.0);
+        Design {
+            problem,
+            a,
+            targets,
+            fit_share,
+            period,
+            h_pinv,
+            scale,
+        }
+    }
+
+    /// The candidate run with the lowest score, its score and the uncertain
+    /// parameters' expected variances (`None` when no candidate can be simulated).
+    fn best(&self) -> Option<(f64, Candidate, Vec<f64>)> {
+        let mut best: Option<(f64, Candidate, Vec<f64>)> = None;
+        for c in candidates(self.problem.rec) {
+            let Some(h_new) = self.information_with(&c) else {
+                continue;
+            };
+            let (score, var) = self.expected_variances(&h_new);
+            if best.as_ref().is_none_or(|b| score < b.0) {
+                best = Some((score, c, var));
+            }
+        }
+        best
+    }
+
+    /// The information after recording run `c`, `H + f H_c` (`None` when the run
+    /// cannot be simulated with the fitted model).
+    fn information_with(&self, c: &Candidate) -> Option<DMatrix<f64>> {
+        let (problem, a) = (self.problem, self.a);
+        let rec = as_recording(problem.rec, &c.name, &c.q, self.period);
+        let p = Problem {
+            base: problem.base.clone(),
+            blocks: problem.blocks.clone(),
+            rec: &rec,
+            rows: (0..rec.rows.len()).collect(),
+            huber_mm: f64::INFINITY,
+            threads: problem.threads,
+            clearance_table: problem.clearance_table,
+        };
+        let p0 = p.predictions(&a.x)?;
+        let jac = p.jacobian(&a.x, &p0)?;
+        let rows = 3 * rec.rows.len();
+        let jr = jac.rows(0, rows);
+        Some(&a.information + (jr.transpose() * jr) * self.fit_share)
+    }
+
+    /// The uncertain parameters' variances expected with information `h_new`, and the
+    /// run's score: the sum of their log variance ratios (a parameter identified anew
+    /// counting [`NEWLY_IDENTIFIED`]).
+    fn expected_variances(&self, h_new: &DMatrix<f64>) -> (f64, Vec<f64>) {
+        let a = self.a;
+        let (pinv_new, null_new, _) = pseudo_inverse(h_new);
+        let mut still = vec![false; a.x.len()];
+        for j in null_new.iter().flat_map(parts) {
+            still[j] = true;
+        }
+        let mut score = 0.0;
+        let mut var = Vec::with_capacity(self.targets.len());
+        for &j in self.targets {
+            let v = if still[j] {
+                f64::INFINITY
+            } else if a.unidentified[j] {
+                self.scale * pinv_new[(j, j)]
+            } else {
+                a.cov[(j, j)] * pinv_new[(j, j)] / self.h_pinv[(j, j)]
+            };
+            score += match (a.unidentified[j], still[j]) {
+                (true, true) => 0.0,
+                (true, false) => NEWLY_IDENTIFIED.ln(),
+                _ => (v / a.cov[(j, j)]).ln(),
+            };
+            var.push(v);
+        }
+        (score, var)
+    }
+}
+
+/// The 95 % interval of parameter `j` of `a` were its variance `v` (clipped to the
+/// fit's bounds, in the file's units; open where `v` is not finite).
+fn interval(a: &Assessment, j: usize, v: f64) -> [Option<f64>; 2] {
+    if !v.is_finite() {
+        return [None, None];
+    }
+    let half = a.t * v.sqrt();
+    let (lo, hi) = a.bounds[j];
+    let (lo, hi) = ((a.x[j] - half).max(lo), (a.x[j] + half).min(hi));
+    if a.labels[j].log {
+        [Some(lo.exp()), Some(hi.exp())]
+    } else {
+        [Some(lo), Some(hi)]
+    }
+}
+
+/// The uncertain parameters `targets`' intervals now and with the expected variances
+/// `var`.
+fn expected_intervals(a: &Assessment, targets: &[usize], var: &[f64]) -> Vec<ExpectedInterval> {
+    targets
+        .iter()
+        .zip(var)
+        .map(|(&j, &v)| {
+            let now = if a.unidentified[j] {
+                [None, None]
+            } else {
+                interval(a, j, a.cov[(j, j)])
+            };
+            let value = if a.labels[j].log {
+                a.x[j].exp()
+            } else {
+                a.x[j]
+            };
+            ExpectedInterval {
+                parameter: a.labels[j].name.clone(),
+                value,
+                ci95_now: now,
+                ci95_expected: interval(a, j, v),
+            }
+        })
+        .collect()
+}
+
+/// Why the run is suggested: each uncertain parameter with its interval now and the
+/// one expected.
+fn why(expected: &[ExpectedInterval]) -> String {
+    let show = |ci: [Option<f64>; 2]| match ci {
+        [Some(lo), Some(hi)] => format!("{} to {}", sig(lo), sig(hi)),
+        _ => "not identified".into(),
+    };
+    expected
+        .iter()
+        .map(|e| {
+            format!(
+                "{} {} ({} now, {} expected)",
+                e.parameter,
+                sig(e.value),
+                show(e.ci95_now),
+                show(e.ci95_expected)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 #[cfg(test)]

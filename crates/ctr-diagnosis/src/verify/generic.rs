@@ -63,9 +63,8 @@ impl Context<'_> {
                 && left_emp
                     .as_ref()
                     .is_some_and(|l| !clearly_lower(e, l, self.held)));
-        let failure = (self.checks.beats_generic && (!at_noise || tip) && beaten).then_some(
-            Failure::Empirical { fig: fig_emp, tip },
-        );
+        let failure = (self.checks.beats_generic && (!at_noise || tip) && beaten)
+            .then_some(Failure::Empirical { fig: fig_emp, tip });
         (fig_emp, failure)
     }
 
