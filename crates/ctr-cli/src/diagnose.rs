@@ -30,6 +30,10 @@ pub struct DiagnoseArgs {
     /// to the tip.
     #[arg(long, requires = "out")]
     pub with_empirical: bool,
+    /// Write only the established findings into the fitted file (the predictive ones,
+    /// which help prediction but whose form the data do not establish, left out).
+    #[arg(long, requires = "out", conflicts_with = "with_empirical")]
+    pub established_only: bool,
     /// Write before/after plots (SVG) into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
@@ -157,6 +161,7 @@ struct Outputs<'a> {
     report: &'a Option<PathBuf>,
     out: &'a Option<PathBuf>,
     with_empirical: bool,
+    established_only: bool,
     plots: Option<&'a Path>,
     html: &'a Option<PathBuf>,
     suggest_run: &'a Option<PathBuf>,
@@ -168,21 +173,18 @@ fn write_outputs(spec: &RobotSpec, d: &Diagnosis, o: &Outputs<'_>) -> Result<(),
         write_text(path, &(json + "\n"))?;
     }
     if let Some(path) = o.out {
-        let fitted = if o.with_empirical {
+        let fitted = if o.established_only {
+            d.established_spec(spec)
+        } else if o.with_empirical {
             d.fitted_spec_with_empirical(spec)
         } else {
             d.fitted_spec(spec)
         };
-        let effects: Vec<&str> = d
-            .report
-            .findings
-            .iter()
-            .map(|f| f.effect.as_str())
-            .collect();
+        let findings = d.graded(o.established_only);
         let with_empirical = o.with_empirical && d.empirical.is_some();
         write_text(
             path,
-            &ctr_diagnosis::fitted_file(&fitted, &effects, with_empirical),
+            &ctr_diagnosis::fitted_file(&fitted, &findings, with_empirical),
         )?;
     }
     if let Some(path) = o.suggest_run {
@@ -256,6 +258,7 @@ pub fn diagnose(args: DiagnoseArgs) -> Result<(), Failure> {
         report: &args.report,
         out: &args.out,
         with_empirical: args.with_empirical,
+        established_only: args.established_only,
         plots: args.plots.as_deref(),
         html: &args.html,
         suggest_run: &args.suggest_run,
@@ -278,6 +281,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<(), Failure> {
         report: &args.report,
         out: &args.out,
         with_empirical: false,
+        established_only: false,
         plots: None,
         html: &None,
         suggest_run: &None,

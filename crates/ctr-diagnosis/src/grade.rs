@@ -46,6 +46,19 @@ impl Grade {
             Grade::Predictive => "predictive",
         }
     }
+
+    /// The grade named `name` (`None` for another word).
+    ///
+    /// ```
+    /// use ctr_diagnosis::Grade;
+    /// assert_eq!(Grade::parse("established"), Some(Grade::Established));
+    /// assert_eq!(Grade::parse("sure"), None);
+    /// ```
+    pub fn parse(name: &str) -> Option<Grade> {
+        [Grade::Established, Grade::Predictive]
+            .into_iter()
+            .find(|g| g.as_str() == name)
+    }
 }
 
 /// The value of a parameter of an effect's table in the robot file (its key) that means

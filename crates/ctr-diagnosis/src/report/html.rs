@@ -14,6 +14,7 @@
 //! labels, names, the robot file) is HTML-escaped.
 
 use crate::error::DiagnoseError;
+use crate::grade::Grade;
 use crate::locate::stability::Stability;
 use crate::report::numbers::{intervals, sig, Interval};
 use crate::report::plots::{Plot, RunError, Traces};
@@ -85,13 +86,17 @@ impl Page {
             &ModelSpec::from_spec(user),
             &ModelSpec::from_spec(fitted),
         )?;
-        let effects: Vec<&str> = report["findings"]
+        // a report written before grades counts its findings established
+        let graded: Vec<(&str, Grade)> = report["findings"]
             .as_array()
             .into_iter()
             .flatten()
-            .filter_map(|f| f["effect"].as_str())
+            .filter_map(|f| {
+                let grade = f["grade"].as_str().and_then(Grade::parse);
+                Some((f["effect"].as_str()?, grade.unwrap_or(Grade::Established)))
+            })
             .collect();
-        let fitted_file = fitted_file(fitted, &effects, false);
+        let fitted_file = fitted_file(fitted, &graded, false);
         Ok(Page {
             recording: rec.file.clone(),
             report,
@@ -240,6 +245,18 @@ fn verdict(h: &mut String, r: &Value) {
         );
     }
     h.push_str("</table>\n");
+    // the tip angles apart from the positions (only with angular columns)
+    if let Some(deg) = r["final"]["heldout_rms_deg"].as_f64() {
+        let _ = writeln!(
+            h,
+            "<p id=\"angles\">Tip angle: {:.2} deg RMS on held-out rows after fitting, {:.2} deg \
+             before, against {:.2} deg of noise (the figures in mm above are of the tip \
+             position alone).</p>",
+            deg,
+            num(&r["baseline"]["heldout_rms_deg"]),
+            num(&r["noise"]["angular"]["rms_deg"])
+        );
+    }
     // the rows near a snap (a report without the key: none said)
     let near = serde_json::from_value::<Stability>(r["stability"].clone())
         .ok()
@@ -262,56 +279,114 @@ fn interval_row(h: &mut String, i: &Interval) {
     );
 }
 
+/// A finding's grade in its JSON (a report written before grades: established).
+fn grade_of(f: &Value) -> Grade {
+    f["grade"]
+        .as_str()
+        .and_then(Grade::parse)
+        .unwrap_or(Grade::Established)
+}
+
 fn findings(h: &mut String, r: &Value) {
     h.push_str("<h2 id=\"findings\">Findings</h2>\n");
     let found = array(&r["findings"]);
     if found.is_empty() {
         h.push_str("<p>No left-out effect explains part of the error.</p>\n");
     }
-    for f in found {
-        let _ = write!(
+    // established first: the physics the data show, then what only helps prediction
+    for grade in [Grade::Established, Grade::Predictive] {
+        let of_grade: Vec<&Value> = found.iter().filter(|f| grade_of(f) == grade).collect();
+        if of_grade.is_empty() {
+            continue;
+        }
+        let _ = writeln!(
             h,
-            "<section class=\"finding\">\n<h3><code>{}</code></h3>\n<p>{}</p>\n\
-             <p>Where: {}</p>\n<p>Held-out RMS {} &rarr; {} mm (fit rows {} &rarr; {} mm).</p>\n\
-             <table class=\"parameters\"><tr><th>parameter</th><th>fitted</th>\
-             <th>95 % interval, low</th><th>high</th></tr>\n",
-            text(&f["effect"]),
-            text(&f["explanation"]),
-            text(&f["where"]),
-            mm(&f["heldout_rms_mm_before"]),
-            mm(&f["heldout_rms_mm_after"]),
-            mm(&f["rms_mm_before"]),
-            mm(&f["rms_mm_after"])
+            "<h3 class=\"grade\">{}</h3>",
+            match grade {
+                Grade::Established => "Established: physics the data show",
+                Grade::Predictive =>
+                    "Predictive: each helps prediction, its form is not established (it may \
+                     stand in for something outside the vocabulary)",
+            }
         );
-        let (parameters, identified) = intervals(&f["parameters"], &f["ci95"]);
-        parameters.iter().for_each(|p| interval_row(h, p));
-        if !identified.is_empty() {
-            h.push_str("<tr><th colspan=\"4\">identified combinations</th></tr>\n");
-            identified.iter().for_each(|p| interval_row(h, p));
-        }
-        h.push_str("</table>\n");
-        let equally: Vec<String> = array(&f["equally_explained_by"])
-            .iter()
-            .map(|a| {
-                format!(
-                    "<code>{}</code> ({} mm held out)",
-                    text(&a["effect"]),
-                    mm(&a["heldout_rms_mm"])
-                )
-            })
-            .collect();
-        if !equally.is_empty() {
-            let _ = writeln!(
-                h,
-                "<p class=\"equally\">Equally: {} explain{} this residual as well; the data \
-                 do not tell them apart (this one is named only because the search took it \
-                 first).</p>",
-                equally.join(", "),
-                if equally.len() == 1 { "s" } else { "" }
-            );
-        }
-        h.push_str("</section>\n");
+        of_grade.into_iter().for_each(|f| finding(h, f));
     }
+    not_physics(h, r);
+}
+
+/// One finding's section: what, where, what the fitted model loses without it, its
+/// parameters with their intervals, why it is only predictive, its equals.
+fn finding(h: &mut String, f: &Value) {
+    let grade = grade_of(f);
+    let angles = f["heldout_rms_deg"]
+        .as_array()
+        .filter(|a| a.len() == 2)
+        .map_or(String::new(), |a| {
+            format!(
+                "; tip angle {:.2} instead of {:.2} deg",
+                num(&a[0]),
+                num(&a[1])
+            )
+        });
+    let _ = write!(
+        h,
+        "<section class=\"finding {}\" data-grade=\"{}\">\n<h3><code>{}</code> \
+         <span class=\"badge\">{}</span></h3>\n<p>{}</p>\n<p>Where: {}</p>\n\
+         <p>Without it, the fitted model's held-out RMS would be {} mm instead of {} mm{} \
+         (fit rows {} instead of {} mm).</p>\n\
+         <table class=\"parameters\"><tr><th>parameter</th><th>fitted</th>\
+         <th>95 % interval, low</th><th>high</th></tr>\n",
+        grade.as_str(),
+        grade.as_str(),
+        text(&f["effect"]),
+        grade.as_str(),
+        text(&f["explanation"]),
+        text(&f["where"]),
+        mm(&f["heldout_rms_mm_before"]),
+        mm(&f["heldout_rms_mm_after"]),
+        angles,
+        mm(&f["rms_mm_before"]),
+        mm(&f["rms_mm_after"])
+    );
+    let (parameters, identified) = intervals(&f["parameters"], &f["ci95"]);
+    parameters.iter().for_each(|p| interval_row(h, p));
+    if !identified.is_empty() {
+        h.push_str("<tr><th colspan=\"4\">identified combinations</th></tr>\n");
+        identified.iter().for_each(|p| interval_row(h, p));
+    }
+    h.push_str("</table>\n");
+    if grade == Grade::Predictive {
+        let _ = writeln!(
+            h,
+            "<p class=\"why-predictive\">Why predictive: {}.</p>",
+            text(&f["grade_reason"])
+        );
+    }
+    let equally: Vec<String> = array(&f["equally_explained_by"])
+        .iter()
+        .map(|a| {
+            format!(
+                "<code>{}</code> ({} mm held out)",
+                text(&a["effect"]),
+                mm(&a["heldout_rms_mm"])
+            )
+        })
+        .collect();
+    if !equally.is_empty() {
+        let _ = writeln!(
+            h,
+            "<p class=\"equally\">Equally: {} explain{} this residual as well; the data \
+             do not tell them apart (this one is named only because the search took it \
+             first).</p>",
+            equally.join(", "),
+            if equally.len() == 1 { "s" } else { "" }
+        );
+    }
+    h.push_str("</section>\n");
+}
+
+/// The findings the checks took out, and what the data do not identify.
+fn not_physics(h: &mut String, r: &Value) {
     for t in array(&r["tried"]) {
         if let Some(why) = t["note"].as_str().and_then(|n| n.strip_prefix(REMOVED)) {
             let _ = writeln!(

@@ -428,6 +428,19 @@ pub struct Diagnosis {
 }
 
 impl Report {
+    /// The established findings (physics the data show), in the order added.
+    ///
+    /// ```
+    /// # fn check(r: &ctr_diagnosis::Report) {
+    /// let names: Vec<&str> = r.established().map(|f| f.effect.as_str()).collect();
+    /// # }
+    /// ```
+    pub fn established(&self) -> impl Iterator<Item = &Finding> {
+        self.findings
+            .iter()
+            .filter(|f| f.grade == Grade::Established)
+    }
+
     /// The findings by grade in one line each, established first (what the summary
     /// leads with); empty without findings.
     fn graded_words(&self) -> String {
@@ -582,6 +595,36 @@ impl Diagnosis {
         }
     }
 
+    /// [`fitted_spec`](Self::fitted_spec) with the established findings alone: the
+    /// predictive ones taken out, the others at their fitted values (not refitted). What
+    /// `ctr-cli diagnose --established-only` writes.
+    pub fn established_spec(&self, spec: &RobotSpec) -> RobotSpec {
+        let mut out = self.fitted_spec(spec);
+        let mut m = self.fitted.clone();
+        for f in self
+            .report
+            .findings
+            .iter()
+            .filter(|f| f.grade == Grade::Predictive)
+        {
+            f.effect.remove(&mut m);
+        }
+        out.model = m.model;
+        out.effects = m.effects;
+        out
+    }
+
+    /// The report's findings as [`fitted_file`] lists them: contract id and grade,
+    /// only the established ones with `established_only`.
+    pub fn graded(&self, established_only: bool) -> Vec<(&'static str, Grade)> {
+        self.report
+            .findings
+            .iter()
+            .filter(|f| !established_only || f.grade == Grade::Established)
+            .map(|f| (f.effect.as_str(), f.grade))
+            .collect()
+    }
+
     /// [`fitted_spec`](Self::fitted_spec) with the empirical term as `[model.empirical]`
     /// (its terms after any the user's file had): what `ctr-cli diagnose
     /// --with-empirical` writes. The same as `fitted_spec` when the recording is
@@ -599,24 +642,45 @@ impl Diagnosis {
 }
 
 /// The fitted robot file as `ctr-cli diagnose --out` writes it: a comment line naming
-/// the robot and the effects added (`effects`, contract ids in the report's order; and,
-/// with `with_empirical`, the empirical term in `[model.empirical]`), then `fitted`'s
-/// TOML, which `ctr-cli fk` reads as is.
+/// the robot and the effects added (`findings`: contract ids with their grades, in the
+/// report's order; and, with
+/// `with_empirical`, the empirical term in `[model.empirical]`), a comment line per
+/// grade saying which are established and which only predictive, then `fitted`'s TOML,
+/// which `ctr-cli fk` reads as is.
 ///
 /// ```
 /// let spec = ctr_formats::RobotSpec::from_path(std::path::Path::new("../../data/robots/liu2023.toml"))?;
-/// let text = ctr_diagnosis::fitted_file(&spec, &["latency"], false);
-/// assert!(text.starts_with("# Fitted by ctr-cli from liu2023: latency\nname = \"liu2023\"\n"));
+/// let text = ctr_diagnosis::fitted_file(&spec, &[], false);
+/// assert!(text.starts_with("# Fitted by ctr-cli from liu2023: no effect added\nname = \"liu2023\"\n"));
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
-pub fn fitted_file(fitted: &RobotSpec, effects: &[&str], with_empirical: bool) -> String {
+pub fn fitted_file(fitted: &RobotSpec, findings: &[(&str, Grade)], with_empirical: bool) -> String {
+    let of =
+        |g: Grade| -> Vec<&str> { findings.iter().filter(|f| f.1 == g).map(|f| f.0).collect() };
+    let all: Vec<&str> = findings.iter().map(|f| f.0).collect();
+    let mut grades = String::new();
+    let established = of(Grade::Established);
+    if !established.is_empty() {
+        grades += &format!(
+            "# established (physics the data show): {}\n",
+            established.join(", ")
+        );
+    }
+    let predictive = of(Grade::Predictive);
+    if !predictive.is_empty() {
+        grades += &format!(
+            "# predictive (helps prediction; its form is not established; it may stand in for \
+             something outside the vocabulary): {}\n",
+            predictive.join(", ")
+        );
+    }
     format!(
-        "# Fitted by ctr-cli from {}: {}{}\n{}",
+        "# Fitted by ctr-cli from {}: {}{}\n{grades}{}",
         fitted.name.as_deref().unwrap_or("the robot file"),
-        if effects.is_empty() {
+        if all.is_empty() {
             "no effect added".to_owned()
         } else {
-            effects.join(", ")
+            all.join(", ")
         },
         if with_empirical {
             "; and an empirical term (not physics) in [model.empirical]"
