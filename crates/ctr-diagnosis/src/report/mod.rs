@@ -428,6 +428,39 @@ pub struct Diagnosis {
 }
 
 impl Report {
+    /// The summary's last lines: the rows near a snap, the run to record next, the
+    /// empirical term.
+    fn next_steps_words(&self) -> String {
+        let mut s = String::new();
+        if let Some(line) = self.stability.words() {
+            s += &line;
+            s += "\n";
+        }
+        if let Some(run) = &self.suggested_run {
+            s += &format!(
+                "Next run to record: {} ({} rows, one every {} s). Expected: {}.\n",
+                run.run,
+                run.rows,
+                sig(run.sample_period_s),
+                run.why
+            );
+        }
+        if let Some(emp) = &self.empirical {
+            let terms: Vec<String> = self
+                .dominant_terms()
+                .map(|t| format!("{} on {} ({:.2} mm)", t.feature, t.axis, t.rms_mm))
+                .collect();
+            s += &format!(
+                "An empirical term (not physics, {} terms chosen by cross-validation on the \
+                 fit rows) leaves {:.3} mm held out; its largest terms: {}.\n",
+                emp.terms,
+                emp.heldout_rms_mm,
+                terms.join(", ")
+            );
+        }
+        s
+    }
+
     /// The established findings (physics the data show), in the order added.
     ///
     /// ```
@@ -550,32 +583,7 @@ impl Report {
             )),
             self.unexplained
         );
-        if let Some(line) = self.stability.words() {
-            s += &line;
-            s += "\n";
-        }
-        if let Some(run) = &self.suggested_run {
-            s += &format!(
-                "Next run to record: {} ({} rows, one every {} s). Expected: {}.\n",
-                run.run,
-                run.rows,
-                sig(run.sample_period_s),
-                run.why
-            );
-        }
-        if let Some(emp) = &self.empirical {
-            let terms: Vec<String> = self
-                .dominant_terms()
-                .map(|t| format!("{} on {} ({:.2} mm)", t.feature, t.axis, t.rms_mm))
-                .collect();
-            s += &format!(
-                "An empirical term (not physics, {} terms chosen by cross-validation on the \
-                 fit rows) leaves {:.3} mm held out; its largest terms: {}.\n",
-                emp.terms,
-                emp.heldout_rms_mm,
-                terms.join(", ")
-            );
-        }
+        s += &self.next_steps_words();
         s
     }
 
