@@ -30,6 +30,7 @@
 //! ```
 
 pub mod batch;
+pub mod discrepancy;
 pub mod ik;
 pub mod job;
 pub mod limits;

@@ -6,6 +6,7 @@
 //! its recorded tip force (the loaded model, torsion; a recorded force on a rigid
 //! model is refused as the core refuses it), the tip as measured.
 
+use crate::discrepancy::delayed_commands;
 use crate::model::{ModelError, ModelSpec};
 use crate::timeline::actual_joints;
 use ctr_core::{JointError, SolveError, Status};
@@ -171,7 +172,7 @@ fn simulate(
         if margins {
             solver = solver.with_margins();
         }
-        for (k, row) in range.enumerate() {
+        for (k, row) in range.clone().enumerate() {
             if !keep(row) {
                 continue;
             }
@@ -190,6 +191,18 @@ fn simulate(
             }
             out.p[row] = tip.position;
             out.q[row] = tip.quaternion;
+        }
+        if let Some(gp) = &model.discrepancy {
+            // the learned discrepancy along the run, from the delayed commands
+            let commands = delayed_commands(model, rec, run);
+            let joints: Vec<&[f64]> = commands.iter().map(|q| &q[..]).collect();
+            for (row, (d, _)) in range.zip(gp.along_run(&joints)) {
+                if keep(row) {
+                    for a in 0..3 {
+                        out.p[row][a] += d[a];
+                    }
+                }
+            }
         }
     }
     Ok(out)

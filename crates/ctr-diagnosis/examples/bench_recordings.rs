@@ -136,6 +136,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             model: Model::Torsion,
             effects: bench.effects.clone(),
             empirical: None,
+            discrepancy: None,
         };
         let three = spec.robot.n_tubes() >= 3;
         let default = SynthSpec::default();

@@ -36,7 +36,7 @@ pub(crate) fn finish(
     let rec = start.rec;
     let mut found = found;
     without_each(&start, &mut found);
-    let verdict = Verdict::new(&start, &found.e, &pred.margin);
+    let verdict = Verdict::new(&start, &found.model, &found.e, &pred.margin);
     let Found {
         model,
         mut findings,
@@ -102,6 +102,7 @@ pub(crate) fn finish(
         },
         fitted,
         empirical: (!explained).then_some(verdict.correction),
+        discrepancy: verdict.discrepancy,
         suggested_joints,
     }
 }

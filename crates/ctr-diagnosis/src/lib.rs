@@ -117,9 +117,9 @@ pub use options::{Checks, Options};
 pub use report::html::{escape_html, Page};
 pub use report::plots::Plot;
 pub use report::{
-    fitted_file, Alternative, AngularFigures, AngularNoise, Correlated, Diagnosis, Empirical,
-    ExpectedInterval, Figures, Finding, JointRun, Noise, Report, RunErrors, Split, SuggestedRun,
-    Term, Trial,
+    fitted_file, Alternative, AngularFigures, AngularNoise, Band, Correlated, Diagnosis, Empirical,
+    ExpectedInterval, Figures, Finding, GpInput, JointRun, Noise, Report, RunErrors, Split,
+    SuggestedRun, Term, Trial,
 };
 pub use search::MIN_HELDOUT_GAIN;
 pub use start::noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};

@@ -1,27 +1,36 @@
 //! The verdict (the method's step 6): is what the fitted model leaves consistent with
 //! the noise? The noise is estimated again on what it leaves (closer to white, so the
 //! lower estimate is kept), the labelled empirical term is fitted on top of the physics
-//! ([`crate::empirical::hybrid`]), tracker outliers are judged on what is left after
+//! ([`crate::empirical::hybrid`]; where the recording is not explained, the learned
+//! discrepancy of [`crate::empirical::gp`] is fitted too and reported in its place),
+//! tracker outliers are judged on what is left after
 //! both, and `explained` holds when the held-out RMS without them is at most
 //! [`NOISE_TOLERANCE`] times the noise's RMS.
 
-use crate::empirical::hybrid;
+use crate::empirical::{gp, hybrid};
 use crate::locate::stability::Stability;
 use crate::report::prose::leftover;
 use crate::report::{Empirical, Figures, Noise};
 use crate::residual::{inlier_figures, positions, RowError};
 use crate::start::noise::{estimate_noise, outlier_rows, NOISE_TOLERANCE};
 use crate::start::Start;
-use ctr_formats::Correction;
+use ctr_analysis::model::ModelSpec;
+use ctr_formats::{Correction, Discrepancy};
 
 /// The verdict on a fitted model's error (see the module docs).
 pub(crate) struct Verdict {
     /// The noise estimate the verdict compares with.
     pub noise: Noise,
-    /// The empirical term fitted on top of the physics, as the report lists it.
+    /// The empirical term fitted on top of the physics, as the report lists it: the
+    /// learned discrepancy where the recording is not explained and it can be fitted,
+    /// else the linear correction.
     pub empirical: Empirical,
-    /// The same, as the robot file's `[model.empirical]`.
+    /// The linear correction, as the robot file's `[model.empirical]` (what the
+    /// outliers are judged after, and the intervals' remainder is refitted with).
     pub correction: Correction,
+    /// The learned discrepancy, as the robot file's `[model.discrepancy]` (only where
+    /// the recording is not explained).
+    pub discrepancy: Option<Discrepancy>,
     /// Rows set aside as tracker outliers, ascending.
     pub outliers: Vec<usize>,
     /// The outlier rule's threshold, mm.
@@ -35,9 +44,9 @@ pub(crate) struct Verdict {
 }
 
 impl Verdict {
-    /// The verdict on the fitted model whose error vectors are `e` and stability
+    /// The verdict on the fitted model `model` whose error vectors are `e` and stability
     /// margins `margin` (per row, from the same simulation).
-    pub(crate) fn new(start: &Start, e: &[RowError], margin: &[f64]) -> Self {
+    pub(crate) fn new(start: &Start, model: &ModelSpec, e: &[RowError], margin: &[f64]) -> Self {
         let rec = start.rec;
         let again = estimate_noise(rec, &positions(e));
         let noise = if again.sigma_mm_per_axis < start.noise.sigma_mm_per_axis
@@ -54,10 +63,17 @@ impl Verdict {
         let stability = Stability::new(rec, start.warn_margin, &start.margin0, margin, &outliers);
         let inliers = inlier_figures(rec, e, &start.held, &outliers);
         let explained = inliers.heldout_score() <= NOISE_TOLERANCE * noise.weighted_rms();
+        // what no physics explains, learned over the joints and their history
+        let learned = (!explained).then(|| gp::fit(start, model, e)).flatten();
+        let (empirical, discrepancy) = match learned {
+            Some((account, d, _)) => (account, Some(d)),
+            None => (empirical, None),
+        };
         Verdict {
             noise,
             empirical,
             correction,
+            discrepancy,
             outliers,
             outlier_threshold_mm,
             stability,

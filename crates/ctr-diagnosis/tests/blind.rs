@@ -159,12 +159,14 @@ fn generated(case: &Case) -> (ModelSpec, ctr_diagnosis::synth::Synthetic) {
         },
         effects: Effects::default(),
         empirical: None,
+        discrepancy: None,
     };
     let world = ModelSpec {
         robot: spec.robot,
         model: Model::Torsion,
         effects: case.effects.clone(),
         empirical: None,
+        discrepancy: None,
     };
     let gen = generate(&world, &ranges, &synth_spec(case, spec.robot.n_tubes())).unwrap();
     assert_eq!(gen.failed, 0, "{}: the world's solves converge", case.name);
@@ -517,6 +519,7 @@ fn generated_recording_round_trips_through_csv() {
             ..Default::default()
         },
         empirical: None,
+        discrepancy: None,
     };
     let synth = synth_spec(&case, 3);
     let a = generate(&world, &ranges, &synth).unwrap();
@@ -934,6 +937,7 @@ fn a_suggested_run_shrinks_the_intervals_as_predicted() {
         model: Model::Torsion,
         effects: case.effects.clone(),
         empirical: None,
+        discrepancy: None,
     };
     let user = ModelSpec {
         effects: Effects::default(),

@@ -86,8 +86,7 @@ fn the_page_shows_verdict_findings_plots_runs_and_the_fitted_file() {
     // what is left, where, and the fitted file, as `--out` writes it
     assert!(html.contains("<h2 id=\"unexplained\">What is left, and where</h2>"));
     assert!(html.contains("<table id=\"located\">"));
-    let fitted =
-        ctr_diagnosis::fitted_file(&d.fitted_spec(&spec), &["latency", "clearance"], false);
+    let fitted = ctr_diagnosis::fitted_file(&d.fitted_spec(&spec), &d.graded(false), false);
     assert!(html.contains(&ctr_diagnosis::escape_html(&fitted)));
     assert!(html.contains("[model.effects.latency]"));
     // strings from files are escaped, in the page and in the plots

@@ -158,6 +158,7 @@
 
 mod actuation;
 mod csvout;
+mod discrepancy;
 mod effects;
 mod empirical;
 mod error;
@@ -180,6 +181,7 @@ pub use actuation::{
     ActuatedJoint, ActuationProblem, ActuationSection, ActuatorKind, InvalidActuation, JointId,
     DEFAULT_TICKS_PER_REV, MAX_MOTOR_ID,
 };
+pub use discrepancy::{inputs_along_run, Discrepancy, DiscrepancyFile, Input, GAUSSIAN_PROCESS};
 pub use effects::{
     Clearance, Effects, Friction, Gravity, JointOffset, Latency, Precurvature, Registration,
     SensorOffset, SensorRotation, Stiffness, CLEARANCE_FIT_TABLE_SIZES,

@@ -3,6 +3,7 @@
 //! The shape is documented in [the module above](super).
 
 use super::actuation::{ActuatedJoint, ActuationSection};
+use super::discrepancy::{Discrepancy, DiscrepancyFile};
 use super::effects::Effects;
 use super::empirical::{Correction, Empirical};
 use super::toml_doc::{exact_opt, line_col, one_line, path_at, span_of, without_bom, Key};
@@ -114,6 +115,10 @@ pub struct ModelSection {
     /// `[model.empirical]`: a labelled data-driven correction of the tip (not physics).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub empirical: Option<Empirical>,
+    /// `[model.discrepancy]`: a learned discrepancy of the tip over the joints and
+    /// their history (not physics).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub discrepancy: Option<DiscrepancyFile>,
 }
 
 /// The base model of `[model] kind`, and the one table of its names ([`name`](Self::name),
@@ -271,6 +276,8 @@ pub struct RobotSpec {
     pub effects: Effects,
     /// `[model.empirical]`, checked against the robot.
     pub empirical: Option<Correction>,
+    /// `[model.discrepancy]`, checked against the robot.
+    pub discrepancy: Option<Discrepancy>,
     /// `[limits]`, one entry per tube, every range finite with `min <= max`.
     pub limits: Option<Vec<TubeLimits>>,
     /// `[actuation]`, validated against the robot: exactly one feed and one rotation
@@ -354,6 +361,15 @@ impl RobotFile {
                 },
             )?),
         };
+        let discrepancy = match &section.discrepancy {
+            None => None,
+            Some(d) => Some(
+                Discrepancy::check(d, params.len()).map_err(|(key, message)| {
+                    let path = vec![Name("model"), Name("discrepancy"), Name(key)];
+                    (ErrorKind::Effect { message }, path)
+                })?,
+            ),
+        };
         let (stiffness, radius) = section.effects.scale_factors(params.len());
         if let Err(e) = robot.scaled(&stiffness, &radius) {
             return Err((ErrorKind::Robot(e), vec![Name("model"), Name("effects")]));
@@ -408,6 +424,7 @@ impl RobotFile {
             model: section.kind.into(),
             effects: section.effects,
             empirical,
+            discrepancy,
             limits,
             actuation,
         })
@@ -504,6 +521,7 @@ impl RobotSpec {
                 kind: self.model.into(),
                 effects: self.effects.clone(),
                 empirical: self.empirical.as_ref().map(Correction::to_file),
+                discrepancy: self.discrepancy.as_ref().map(Discrepancy::to_file),
             }),
             limits: self.limits.clone().map(|tube| LimitsSection { tube }),
             actuation: self

@@ -247,6 +247,7 @@ impl Ik {
             model,
             effects: effects.clone(),
             empirical: None,
+            discrepancy: None,
         };
         let rows = spec.rows().map_err(|e| IkError::Effect(e.to_string()))?;
         for (effect, on) in [
@@ -319,6 +320,14 @@ impl Ik {
     /// with a `[model.empirical]` correction is refused ([`IkError::Effect`]): the IK
     /// inverts the physical model only, and would silently leave the correction out.
     pub fn for_spec(spec: &RobotSpec, model: Model, options: IkOptions) -> Result<Ik, IkError> {
+        if spec.discrepancy.is_some() {
+            return Err(IkError::Effect(
+                "model.discrepancy: the inverse kinematics inverts the physical model only and \
+                 cannot take a learned discrepancy; remove [model.discrepancy] from the robot \
+                 file for ik"
+                    .into(),
+            ));
+        }
         if spec.empirical.is_some() {
             return Err(IkError::Effect(
                 "model.empirical: the inverse kinematics inverts the physical model only and \

@@ -41,6 +41,7 @@ pub(crate) use tip::{
 };
 pub use tip::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE};
 
+use crate::discrepancy::Gp;
 use crate::limits::JointLimits;
 use crate::margin::Margins;
 use crate::timeline::{actual_joints, TimeEffects};
@@ -51,6 +52,7 @@ use ctr_formats::{AnyRobot, Correction, Effects, ErrorKind, FkResult, RobotSpec}
 pub const EMPIRICAL: &str = "empirical";
 use std::fmt;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// A robot, its base mechanics and its effects: everything that predicts a tip.
 ///
@@ -75,6 +77,9 @@ pub struct ModelSpec {
     /// `[model.empirical]`: a labelled data-driven correction added to the tip after
     /// everything else (not physics).
     pub empirical: Option<Correction>,
+    /// `[model.discrepancy]`, prepared: a learned discrepancy over the joints and their
+    /// history added to the tip along each run (not physics; `crate::discrepancy`).
+    pub discrepancy: Option<Arc<Gp>>,
 }
 
 /// Why a model cannot be prepared, or its time effects cannot run.
@@ -119,6 +124,12 @@ impl ModelSpec {
             model: spec.model,
             effects: spec.effects.clone(),
             empirical: spec.empirical.clone(),
+            // positive definite by the file's check (noise_mm > 0)
+            discrepancy: spec
+                .discrepancy
+                .as_ref()
+                .and_then(|d| Gp::new(d).ok())
+                .map(Arc::new),
         }
     }
 
@@ -129,6 +140,7 @@ impl ModelSpec {
             model,
             effects: Effects::default(),
             empirical: None,
+            discrepancy: None,
         }
     }
 

@@ -442,6 +442,7 @@ mod tests {
                 model,
                 effects: e.clone(),
                 empirical: None,
+                discrepancy: None,
             };
             spec.rows().unwrap().tip_fk()
         };

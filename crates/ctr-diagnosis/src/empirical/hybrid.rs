@@ -99,6 +99,8 @@ pub(crate) fn fit(
             rms_mm: fig.rms_mm,
             heldout_rms_mm: fig.heldout_rms_mm,
             dominant,
+            inputs: Vec::new(),
+            band: None,
         },
         correction,
         left,

@@ -14,6 +14,7 @@
 //! current error, `min(1, c / |e|)`, as the physical fits are, so tracker outliers do
 //! not steer it.
 
+pub(crate) mod gp;
 pub(crate) mod hybrid;
 
 use ctr_formats::{Feature, Recording};

@@ -442,25 +442,7 @@ fn left(h: &mut String, r: &Value) {
         text(&r["unexplained"])
     );
     if let Some(e) = r.get("empirical").filter(|e| e.is_object()) {
-        let _ = write!(
-            h,
-            "<p>An empirical term (not physics: {}; {} terms) leaves {} mm held out. Its \
-             largest terms:</p>\n<table id=\"empirical\"><tr><th>feature</th><th>axis</th>\
-             <th>RMS contribution (mm)</th></tr>\n",
-            text(&e["method"]),
-            e["terms"].as_u64().unwrap_or_default(),
-            mm(&e["heldout_rms_mm"])
-        );
-        for t in array(&e["dominant"]) {
-            let _ = writeln!(
-                h,
-                "<tr><td>{}</td><td>{}</td><td class=\"n\">{:.2}</td></tr>",
-                text(&t["feature"]),
-                text(&t["axis"]),
-                num(&t["rms_mm"])
-            );
-        }
-        h.push_str("</table>\n");
+        empirical(h, e);
     }
     h.push_str(
         "<p>Where the user model's error sat before fitting, strongest pattern first:</p>\n\
@@ -472,6 +454,55 @@ fn left(h: &mut String, r: &Value) {
             "<tr><td>{}</td><td class=\"n\">{:.0} %</td></tr>",
             text(&s["text"]),
             100.0 * num(&s["explained"])
+        );
+    }
+    h.push_str("</table>\n");
+}
+
+/// The empirical term: a learned discrepancy with its band and inputs, or a linear
+/// correction with its largest terms.
+fn empirical(h: &mut String, e: &Value) {
+    if e["band"].is_object() {
+        let _ = write!(
+            h,
+            "<p id=\"discrepancy\">A learned discrepancy (not physics: {}) leaves {} mm \
+             held out; its 95 % band holds {:.0} % of the held-out coordinates (median \
+             half-width {} mm). Its inputs, the most telling first:</p>\n\
+             <table id=\"empirical\"><tr><th>input</th><th>length scale</th></tr>\n",
+            text(&e["method"]),
+            mm(&e["heldout_rms_mm"]),
+            100.0 * num(&e["band"]["heldout_coverage_95"]),
+            mm(&Value::from(
+                1.959_963_984_540_054 * num(&e["band"]["median_sd_mm"])
+            ))
+        );
+        for i in array(&e["inputs"]) {
+            let _ = writeln!(
+                h,
+                "<tr><td>{}</td><td class=\"n\">{:.3}</td></tr>",
+                text(&i["input"]),
+                num(&i["length_scale"])
+            );
+        }
+        h.push_str("</table>\n");
+        return;
+    }
+    let _ = write!(
+        h,
+        "<p>An empirical term (not physics: {}; {} terms) leaves {} mm held out. Its \
+         largest terms:</p>\n<table id=\"empirical\"><tr><th>feature</th><th>axis</th>\
+         <th>RMS contribution (mm)</th></tr>\n",
+        text(&e["method"]),
+        e["terms"].as_u64().unwrap_or_default(),
+        mm(&e["heldout_rms_mm"])
+    );
+    for t in array(&e["dominant"]) {
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td class=\"n\">{:.2}</td></tr>",
+            text(&t["feature"]),
+            text(&t["axis"]),
+            num(&t["rms_mm"])
         );
     }
     h.push_str("</table>\n");

@@ -11,7 +11,7 @@ use crate::grade::Grade;
 use crate::locate::stability::{MarginRange, Stability};
 use crate::locate::Statement;
 use ctr_analysis::model::ModelSpec;
-use ctr_formats::{Correction, RobotSpec};
+use ctr_formats::{Correction, Discrepancy, RobotSpec};
 use numbers::sig;
 use serde::Serialize;
 
@@ -81,6 +81,30 @@ pub struct Term {
     pub rms_mm: f64,
 }
 
+/// An input of the learned discrepancy and its length scale.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GpInput {
+    /// Its name (`s3`, `theta3 - theta2`, `play(theta3 - theta2, 2)`).
+    pub input: String,
+    /// Its length scale in standardised units: the shorter, the more the discrepancy
+    /// changes with it (100: it does not matter).
+    pub length_scale: f64,
+}
+
+/// The learned discrepancy's band: how sure it is, row by row.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Band {
+    /// The median over the rows of a measurement's standard deviation about the
+    /// corrected tip, mm per axis (the band is +/- 1.96 of it).
+    pub median_sd_mm: f64,
+    /// The discrepancy's prior standard deviation, mm.
+    pub signal_mm: f64,
+    /// The measurements' noise about it, mm.
+    pub noise_mm: f64,
+    /// Share of the held-out rows' coordinates inside their 95 % band.
+    pub heldout_coverage_95: f64,
+}
+
 /// The empirical correction fitted on top of the physical model.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Empirical {
@@ -92,8 +116,14 @@ pub struct Empirical {
     pub rms_mm: f64,
     /// RMS over the held-out rows with the correction, mm.
     pub heldout_rms_mm: f64,
-    /// The largest terms by contribution, largest first.
+    /// The largest terms by contribution, largest first (a linear correction's).
     pub dominant: Vec<Term>,
+    /// A learned discrepancy's inputs, shortest length scale first.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<GpInput>,
+    /// A learned discrepancy's band.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub band: Option<Band>,
 }
 
 /// One effect the diagnosis found.
@@ -420,9 +450,13 @@ pub struct Diagnosis {
     pub report: Report,
     /// The user's model with the effects found, fitted.
     pub fitted: ModelSpec,
-    /// The report's `empirical` term as the robot file's `[model.empirical]` (only when
-    /// the recording is not explained).
+    /// The linear empirical correction as the robot file's `[model.empirical]` (only
+    /// when the recording is not explained).
     pub empirical: Option<Correction>,
+    /// The report's `empirical` term, the learned discrepancy, as the robot file's
+    /// `[model.discrepancy]` (only when the recording is not explained and it could be
+    /// fitted).
+    pub discrepancy: Option<Discrepancy>,
     /// The joints of the report's `suggested_run`.
     pub suggested_joints: Option<JointRun>,
 }
@@ -445,7 +479,28 @@ impl Report {
                 run.why
             );
         }
-        if let Some(emp) = &self.empirical {
+        if let Some(band) = self.empirical.as_ref().and_then(|e| e.band) {
+            let emp = self.empirical.as_ref().expect("a band belongs to a term");
+            let telling: Vec<String> = emp
+                .inputs
+                .iter()
+                .take(3)
+                .map(|i| format!("{} ({:.2})", i.input, i.length_scale))
+                .collect();
+            s += &format!(
+                "A learned discrepancy (not physics: a Gaussian process over the joints and \
+                 their history, {} inputs, fitted on the fit rows) leaves {:.3} mm held out \
+                 (the physics {:.3} mm); its 95 % band (median half-width {:.3} mm) holds \
+                 {:.0} % of the held-out coordinates; the inputs it varies with most (length \
+                 scale): {}.\n",
+                emp.terms,
+                emp.heldout_rms_mm,
+                self.final_.heldout_rms_mm,
+                1.959_963_984_540_054 * band.median_sd_mm,
+                100.0 * band.heldout_coverage_95,
+                telling.join(", ")
+            );
+        } else if let Some(emp) = &self.empirical {
             let terms: Vec<String> = self
                 .dominant_terms()
                 .map(|t| format!("{} on {} ({:.2} mm)", t.feature, t.axis, t.rms_mm))
@@ -639,6 +694,10 @@ impl Diagnosis {
     /// explained.
     pub fn fitted_spec_with_empirical(&self, spec: &RobotSpec) -> RobotSpec {
         let mut out = self.fitted_spec(spec);
+        if let Some(d) = &self.discrepancy {
+            out.discrepancy = Some(d.clone());
+            return out;
+        }
         if let Some(c) = &self.empirical {
             let mut all = out.empirical.take().unwrap_or_default();
             all.note = c.note.clone();
@@ -690,10 +749,10 @@ pub fn fitted_file(fitted: &RobotSpec, findings: &[(&str, Grade)], with_empirica
         } else {
             all.join(", ")
         },
-        if with_empirical {
-            "; and an empirical term (not physics) in [model.empirical]"
-        } else {
-            ""
+        match (with_empirical, fitted.discrepancy.is_some()) {
+            (false, _) => "",
+            (true, true) => "; and a learned discrepancy (not physics) in [model.discrepancy]",
+            (true, false) => "; and an empirical term (not physics) in [model.empirical]",
         },
         fitted.to_toml()
     )
