@@ -371,7 +371,7 @@ impl EffectId {
                 .map_or(vec![0.0; 3], |s| s.offset_mm.to_vec()),
             EffectId::SensorRotation => e
                 .sensor_rotation
-                .map_or(vec![0.0; 3], |s| s.rotation_vector_deg().to_vec()),
+                .map_or(vec![0.0; 3], |s| s.rotation_vector_deg.to_vec()),
         }
     }
 
@@ -439,7 +439,9 @@ impl EffectId {
                 })
             }
             EffectId::SensorRotation => {
-                e.sensor_rotation = Some(SensorRotation::from_rotation_vector([x[0], x[1], x[2]]))
+                e.sensor_rotation = Some(SensorRotation {
+                    rotation_vector_deg: [x[0], x[1], x[2]],
+                })
             }
         }
     }

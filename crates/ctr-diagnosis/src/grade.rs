@@ -74,8 +74,16 @@ impl Grade {
 pub fn absent_value(key: &str) -> Option<f64> {
     match key {
         "factor" | "radius_factor" => Some(1.0),
-        "rotation_play_deg" | "feed_play_mm" | "max_deflection_deg" | "tau_s"
-        | "translation_mm" | "rotation_deg" | "feed_mm" | "offset_mm" | "g_m_s2" => Some(0.0),
+        "rotation_play_deg"
+        | "feed_play_mm"
+        | "max_deflection_deg"
+        | "tau_s"
+        | "translation_mm"
+        | "rotation_deg"
+        | "feed_mm"
+        | "offset_mm"
+        | "g_m_s2"
+        | "rotation_vector_deg" => Some(0.0),
         _ => None,
     }
 }

@@ -38,8 +38,7 @@
 //! offset_mm = [0.0, 0.0, -2.0]
 //!
 //! [model.effects.sensor_rotation]   # sensor frame in the tip frame: R_measured = R_tip S
-//! rotation_axis = [1.0, 0.0, 0.0]   # in the tip frame, normalised when read
-//! rotation_deg = 3.0
+//! rotation_vector_deg = [3.0, 0.0, 0.0]   # axis times angle, in the tip frame
 //! ```
 //!
 //! The order in which they act on a row: joint offsets, then latency along the run,
@@ -194,45 +193,31 @@ pub struct SensorOffset {
     pub offset_mm: [f64; 3],
 }
 
-/// `[model.effects.sensor_rotation]`: the tracked sensor's frame in the tip frame, `S`
-/// (a rotation about `rotation_axis`, in the tip frame, by `rotation_deg`): the measured
-/// orientation is `R_tip S`, its tangent (z axis) `R_tip S z`. The hand-eye part of a
-/// tracker's calibration; the tracked point stays where `sensor_offset` puts it.
+/// `[model.effects.sensor_rotation]`: the tracked sensor's frame in the tip frame, `S`:
+/// the rotation about `rotation_vector_deg` (in the tip frame) by its length in degrees.
+/// The measured orientation is `R_tip S`, its tangent (z axis) `R_tip S z`: the hand-eye
+/// part of a tracker's calibration; the tracked point stays where `sensor_offset` puts
+/// it. (A rotation vector rather than an axis and an angle: a tangent sees no roll about
+/// z, and each component then keeps its own interval.)
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorRotation {
-    /// Axis of `S` in the tip frame (normalised when used; default `[0, 0, 1]`).
-    #[serde(default = "z_axis", deserialize_with = "super::toml_doc::exact")]
-    pub rotation_axis: [f64; 3],
-    /// Angle of `S` about the axis, degrees (default 0).
-    #[serde(default)]
-    pub rotation_deg: f64,
+    /// `S` as a rotation vector in the tip frame, deg (axis times angle).
+    #[serde(deserialize_with = "super::toml_doc::exact")]
+    pub rotation_vector_deg: [f64; 3],
 }
 
 impl SensorRotation {
-    /// From a rotation vector (axis times angle, degrees, in the tip frame).
+    /// The rotation matrix `S`.
     ///
     /// ```
-    /// let s = ctr_formats::SensorRotation::from_rotation_vector([3.0, 0.0, 0.0]);
-    /// assert_eq!((s.rotation_axis, s.rotation_deg), ([1.0, 0.0, 0.0], 3.0));
-    /// assert_eq!(s.rotation_vector_deg(), [3.0, 0.0, 0.0]);
+    /// let s = ctr_formats::SensorRotation { rotation_vector_deg: [90.0, 0.0, 0.0] };
+    /// let m = s.matrix();
+    /// assert!((m[(2, 1)] - 1.0).abs() < 1e-12); // y turns into z
     /// ```
-    pub fn from_rotation_vector(rotation_vector_deg: [f64; 3]) -> Self {
-        let r = Registration::from_rotation_vector(rotation_vector_deg, [0.0; 3]);
-        SensorRotation {
-            rotation_axis: r.rotation_axis,
-            rotation_deg: r.rotation_deg,
-        }
-    }
-
-    /// The rotation vector (unit axis times angle, degrees).
-    pub fn rotation_vector_deg(&self) -> [f64; 3] {
-        Registration {
-            translation_mm: [0.0; 3],
-            rotation_axis: self.rotation_axis,
-            rotation_deg: self.rotation_deg,
-        }
-        .rotation_vector_deg()
+    pub fn matrix(&self) -> nalgebra::Matrix3<f64> {
+        let v = nalgebra::Vector3::from(self.rotation_vector_deg).map(f64::to_radians);
+        *nalgebra::Rotation3::new(v).matrix()
     }
 }
 
@@ -521,15 +506,11 @@ impl Effects {
             check_finite("sensor_offset", "offset_mm", &s.offset_mm)?;
         }
         if let Some(r) = &self.sensor_rotation {
-            check_finite("sensor_rotation", "rotation_axis", &r.rotation_axis)?;
-            check_finite("sensor_rotation", "rotation_deg", &[r.rotation_deg])?;
-            if r.rotation_deg != 0.0 && r.rotation_axis.iter().all(|&x| x == 0.0) {
-                return Err((
-                    vec!["sensor_rotation", "rotation_axis"],
-                    "model.effects.sensor_rotation.rotation_axis: [0, 0, 0] has no direction"
-                        .into(),
-                ));
-            }
+            check_finite(
+                "sensor_rotation",
+                "rotation_vector_deg",
+                &r.rotation_vector_deg,
+            )?;
         }
         if let Some(r) = &self.registration {
             check_finite("registration", "translation_mm", &r.translation_mm)?;
@@ -573,15 +554,7 @@ impl Effects {
             e.sensor_offset_mm = s.offset_mm;
         }
         if let Some(s) = self.sensor_rotation {
-            let axis = if s.rotation_axis.iter().all(|&x| x == 0.0) {
-                z_axis()
-            } else {
-                s.rotation_axis
-            };
-            e.sensor_rotation = Some(
-                CoreRegistration::from_axis_angle(axis, s.rotation_deg.to_radians(), [0.0; 3])
-                    .rotation,
-            );
+            e.sensor_rotation = Some(s.matrix());
         }
         if let Some(r) = self.registration {
             e.registration = Some(CoreRegistration::from_axis_angle(

@@ -492,13 +492,20 @@ impl Report {
                  their history, {} inputs, fitted on the fit rows) leaves {:.3} mm held out \
                  (the physics {:.3} mm); its 95 % band (median half-width {:.3} mm) holds \
                  {:.0} % of the held-out coordinates; the inputs it varies with most (length \
-                 scale): {}.\n",
+                 scale): {}.{}\n",
                 emp.terms,
                 emp.heldout_rms_mm,
                 self.final_.heldout_rms_mm,
                 1.959_963_984_540_054 * band.median_sd_mm,
                 100.0 * band.heldout_coverage_95,
-                telling.join(", ")
+                telling.join(", "),
+                if emp.heldout_rms_mm >= self.final_.heldout_rms_mm {
+                    " It does not predict the held-out rows better than the physics alone: \
+                     what is left does not repeat with the joints and their history here \
+                     (do not apply it)."
+                } else {
+                    ""
+                }
             );
         } else if let Some(emp) = &self.empirical {
             let terms: Vec<String> = self

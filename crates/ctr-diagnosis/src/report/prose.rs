@@ -98,11 +98,12 @@ pub(crate) fn explain(c: EffectId, m: &ModelSpec) -> String {
         }
         EffectId::SensorRotation => {
             let s = e.sensor_rotation.expect("written by the fit");
+            let v = nalgebra::Vector3::from(s.rotation_vector_deg);
             format!(
-                "The tracked sensor sits turned in the tip frame: by {:.3} deg about ({}) \
-                 (tip frame).",
-                s.rotation_deg,
-                list(&s.rotation_axis, "")
+                "The tracked sensor sits turned in the tip frame: by {:.3} deg in all, \
+                 rotation vector ({}) deg (tip frame).",
+                v.norm(),
+                list(&s.rotation_vector_deg, "")
             )
         }
     }
