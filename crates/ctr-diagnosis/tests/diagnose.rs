@@ -56,15 +56,19 @@ fn check(id: &str) {
             "{id}: no empirical term"
         );
     } else {
-        // the empirical term, written as [model.empirical] and read back as a robot file
-        // does, gives the report's figures when the recording is simulated with it
+        // the empirical term (the learned discrepancy), written as [model.discrepancy]
+        // and read back as a robot file does, gives the report's figures when the
+        // recording is simulated with it
         let emp = r
             .empirical
             .as_ref()
             .expect("an empirical term when not explained");
         let text = d.fitted_spec_with_empirical(&spec).to_toml();
         let back = RobotSpec::from_toml_str(&text, "fitted.toml").unwrap();
-        assert!(back.empirical.is_some(), "{id}: [model.empirical] written");
+        assert!(
+            back.discrepancy.is_some(),
+            "{id}: [model.discrepancy] written"
+        );
         let all: Vec<usize> = (0..rec.runs.len()).collect();
         let p = predict(&ModelSpec::from_spec(&back), &rec, &all).unwrap().p;
         let (held, _) = split(&rec, &Options::default().holdout).unwrap();

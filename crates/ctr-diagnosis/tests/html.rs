@@ -66,7 +66,11 @@ fn the_page_shows_verdict_findings_plots_runs_and_the_fitted_file() {
     ));
     // the findings with their parameters and intervals
     for f in &d.report.findings {
-        assert!(html.contains(&format!("<h3><code>{}</code></h3>", f.effect.as_str())));
+        assert!(html.contains(&format!(
+            "<h3><code>{}</code> <span class=\"badge\">{}</span></h3>",
+            f.effect.as_str(),
+            f.grade.as_str()
+        )));
     }
     assert!(
         html.contains("<tr><td>tau_s</td><td class=\"n\">0.300"),
@@ -137,8 +141,8 @@ fn an_unexplained_report_shows_the_rest_the_empirical_term_and_a_suggested_run()
         .as_ref()
         .expect("an empirical term when unexplained");
     assert!(html.contains(&format!(
-        "{} terms) leaves {:.3} mm held out",
-        empirical.terms, empirical.heldout_rms_mm
+        ") leaves {:.3} mm held out",
+        empirical.heldout_rms_mm
     )));
     assert!(html.contains(&ctr_diagnosis::escape_html(&d.report.unexplained)));
     assert!(html.contains(
