@@ -12,6 +12,7 @@
 
 use crate::ik::{Ik, IkResult};
 use crate::margin::Margins;
+use crate::discrepancy::along_commands;
 use crate::model::{ModelError, RowModel, RowSolver};
 use ctr_core::SolveError;
 use ctr_formats::parallel::{for_each_chunk, Progress};
@@ -307,6 +308,16 @@ pub fn batch_fk(
             true
         },
     );
+    // the learned discrepancy along the rows, one run in their order
+    if let Some(d) = along_commands(model.spec(), joints, t_s) {
+        for (r, (correction, _)) in out.iter_mut().zip(d) {
+            if let Ok(fk) = r {
+                for a in 0..3 {
+                    fk.position[a] += correction[a];
+                }
+            }
+        }
+    }
     Ok(out)
 }
 

@@ -149,6 +149,9 @@ pub struct Report {
     /// The fitted model with the empirical correction (`--with-empirical`); `None`
     /// when explained (then the same as `fitted`).
     fitted_empirical: Option<Py<Robot>>,
+    /// The fitted model with the established findings alone; `None` in a report
+    /// pickled before grades (then `fitted`).
+    fitted_established: Option<Py<Robot>>,
     /// The recording's file name.
     recording: String,
     /// The user's robot.
@@ -159,7 +162,8 @@ pub struct Report {
 
 /// What a pickled `Report` holds: the JSON text, the summary, the fitted robot, the
 /// recording's file name, the user's robot, the recording and (last, so that the earlier
-/// fields keep their places) the fitted robot with the empirical correction.
+/// fields keep their places) the fitted robot with the empirical correction, then the
+/// fitted robot with the established findings alone.
 type State = (
     String,
     String,
@@ -167,6 +171,7 @@ type State = (
     String,
     Py<Robot>,
     Py<Recording>,
+    Option<Py<Robot>>,
     Option<Py<Robot>>,
 );
 
@@ -192,6 +197,13 @@ impl Report {
             )?),
             None => None,
         };
+        let fitted_established = Some(Py::new(
+            py,
+            Robot::new(
+                d.established_spec(user.spec()),
+                format!("{} (fitted, established findings)", user.source_name()),
+            ),
+        )?);
         let file = rec.get().rec.file.clone();
         Report::_from_state(
             py,
@@ -202,6 +214,7 @@ impl Report {
             robot.clone().unbind(),
             rec,
             fitted_empirical,
+            fitted_established,
         )
     }
 
@@ -215,7 +228,7 @@ impl Report {
     /// Rebuilds a pickled report (and builds every report): its JSON text, a JSON
     /// object, parsed here once.
     #[staticmethod]
-    #[pyo3(signature = (json, summary, fitted, recording, user, rec, fitted_empirical = None))]
+    #[pyo3(signature = (json, summary, fitted, recording, user, rec, fitted_empirical = None, fitted_established = None))]
     #[allow(clippy::too_many_arguments)]
     fn _from_state(
         py: Python<'_>,
@@ -226,6 +239,7 @@ impl Report {
         user: Py<Robot>,
         rec: Py<Recording>,
         fitted_empirical: Option<Py<Robot>>,
+        fitted_established: Option<Py<Robot>>,
     ) -> PyResult<Self> {
         let parsed = py
             .import("json")?
@@ -241,6 +255,7 @@ impl Report {
             summary,
             fitted,
             fitted_empirical,
+            fitted_established,
             recording,
             user,
             rec,
@@ -260,6 +275,7 @@ impl Report {
                 r.user.clone_ref(py),
                 r.rec.clone_ref(py),
                 r.fitted_empirical.as_ref().map(|f| f.clone_ref(py)),
+                r.fitted_established.as_ref().map(|f| f.clone_ref(py)),
             ),
         ))
     }
@@ -330,6 +346,17 @@ impl Report {
     #[getter]
     fn fitted_with_empirical(&self, py: Python<'_>) -> Py<Robot> {
         self.fitted_empirical
+            .as_ref()
+            .unwrap_or(&self.fitted)
+            .clone_ref(py)
+    }
+
+    /// The fitted model with the established findings alone (the predictive ones taken
+    /// out, the others at their fitted values): the robot file `ctr-cli diagnose
+    /// --established-only --out` writes. `fitted` for a report pickled before grades.
+    #[getter]
+    fn fitted_established(&self, py: Python<'_>) -> Py<Robot> {
+        self.fitted_established
             .as_ref()
             .unwrap_or(&self.fitted)
             .clone_ref(py)

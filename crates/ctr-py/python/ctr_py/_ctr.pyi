@@ -149,6 +149,7 @@ class Robot:
         threads: int = 0,
         t_s: Optional[ArrayLike] = None,
         margin: bool = False,
+        band: bool = False,
     ) -> tuple:
         """Tip forward kinematics: ``positions, quaternions = robot.fk(q)``.
 
@@ -188,6 +189,14 @@ class Robot:
         for a file without ``t_s``, takes the row order as time; here rows are often
         unrelated configurations, so the times must be given). For several runs call
         ``fk`` once per run. Without time effects ``t_s`` is checked and not used.
+
+        A robot file with a learned discrepancy (``[model.discrepancy]``, written by
+        ``ctr-cli diagnose --with-empirical``) has it added to the positions, the rows
+        one run in order (its play inputs remember the joints' history; ``t_s`` where
+        the model has a latency), as ``ctr-cli fk`` adds it. ``band=True`` returns one
+        more result, last: each row's 95 % band half-width about the corrected tip, mm
+        per axis, shape ``(m,)``; a robot without a discrepancy raises
+        :class:`~ctr_py.InputError`.
         """
 
     def backbone(self, q: ArrayLike, model: Optional[Model] = None) -> F64:
@@ -402,10 +411,17 @@ class Figures(TypedDict):
     heldout_rms_mm: float
     """RMS tip error over the held-out rows."""
 
+# With the recording's orientation or tangent columns in the residual, a figures dict
+# also holds ``rms_deg``, ``max_deg``, ``heldout_rms_deg`` (the tip angle, degrees) and
+# ``weighted_rms_mm_eq``, ``weighted_heldout_rms_mm_eq`` (the fits' weighted basis,
+# mm-equivalent); the ``*_mm`` figures stay of the tip position alone.
+
 Finding = TypedDict(
     "Finding",
     {
         "effect": EffectId,
+        "grade": Literal["established", "predictive"],
+        "grade_reason": str,
         "explanation": str,
         "where": str,
         "parameters": Any,
@@ -418,10 +434,15 @@ Finding = TypedDict(
         "equally_explained_by": List[Any],
     },
 )
-"""One effect found (typing only: a dict at run time): its id, what the model leaves
-out in words with the fitted values, where it shows, its fitted parameters as the
-robot file's ``[model.effects.<id>]`` table writes them, the fit-row and held-out
-RMS before and after adding it, mm, and the held-out RMS of the generic empirical
+"""One effect found (typing only: a dict at run time): its id, its ``grade``
+(``"established"``: it passes every check and a 95 % interval excludes its "not there"
+value, physics the data show; ``"predictive"``: it helps prediction on held-out rows
+but its form is not established, it may stand in for something outside the vocabulary)
+and ``grade_reason``, what the model leaves out in words with the fitted values, where
+it shows, its fitted parameters as the robot file's ``[model.effects.<id>]`` table
+writes them, the fit-row and held-out RMS of the tip positions of the final model
+without it (``*_before``, the others as fitted) and with it (``*_after``), mm, and
+the held-out RMS of the generic empirical
 correction of as many parameters in its place (the yardstick it beat; ``None`` for
 torsion and for :func:`calibrate`), and ``ci95``: the 95 % intervals of ``parameters``
 (the same keys and shapes, each number replaced by ``[lo, hi]`` in its unit,
@@ -579,8 +600,16 @@ class Report:
         ``[model.empirical]`` (after any terms the robot file had): the file
         ``ctr-cli diagnose --with-empirical --out`` writes, without its comment line;
         its ``fk`` applies the correction as ``ctr-cli fk`` does. The same as
-        :attr:`fitted` when the recording is explained (no empirical term). Physics
-        first: use it to predict, not to read causes from."""
+        :attr:`fitted` when the recording is explained (no empirical term). Where the
+        report's empirical term is the learned discrepancy (``report["empirical"]``
+        with a ``band``) it is written as ``[model.discrepancy]`` and ``fk`` adds it
+        along the rows (``band=True`` returns its 95 % band). Physics first: use it to
+        predict, not to read causes from."""
+    @property
+    def fitted_established(self) -> Robot:
+        """The fitted model with the established findings alone (the predictive ones
+        taken out, the others at their fitted values): the file ``ctr-cli diagnose
+        --established-only --out`` writes, without its comment lines."""
     @property
     def recording(self) -> str:
         """The recording's file name."""

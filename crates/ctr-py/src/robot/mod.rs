@@ -24,6 +24,10 @@ use solve::Inverse;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
+
+/// The z value of a two-sided 95 % band (`fk(band=True)`, `ctr-cli fk --band`).
+const BAND_Z: f64 = 1.959_963_984_540_054;
+
 /// A robot read from a robot TOML file (tubes, `[model]`, `[limits]`, `[actuation]`).
 #[pyclass(frozen, module = "ctr_py", name = "Robot")]
 pub struct Robot {
@@ -236,7 +240,8 @@ impl Robot {
     }
 
     /// Tip forward kinematics of joint rows; see `_ctr.pyi`.
-    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = None, t_s = None, margin = false))]
+    #[pyo3(signature = (q, model = None, *, on_error = "fail", threads = None, t_s = None, margin = false, band = false))]
+    #[allow(clippy::too_many_arguments)]
     fn fk<'py>(
         &self,
         py: Python<'py>,
@@ -246,6 +251,7 @@ impl Robot {
         threads: Option<&Bound<'py, PyAny>>,
         t_s: Option<&Bound<'py, PyAny>>,
         margin: bool,
+        band: bool,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let model = self.model_arg(model)?;
         let fkm = self.row_model(model)?;
@@ -282,6 +288,25 @@ impl Robot {
         if margin {
             let m = rows.rows;
             out.push(per_row(py, rows.batched, tips.margins, |py, v| {
+                arrays::array(py, v, &[m])
+            })?);
+        }
+        if band {
+            let along = ctr_analysis::discrepancy::along_commands(
+                fkm.spec(),
+                &rows.data,
+                times.as_deref(),
+            )
+            .ok_or_else(|| {
+                errors::input(
+                    "band=True: the robot has no [model.discrepancy] (a learned discrepancy, \
+                     written by ctr-cli diagnose --with-empirical)"
+                        .into(),
+                )
+            })?;
+            let half: Vec<f64> = along.iter().map(|(_, sd)| BAND_Z * sd).collect();
+            let m = rows.rows;
+            out.push(per_row(py, rows.batched, half, |py, v| {
                 arrays::array(py, v, &[m])
             })?);
         }
