@@ -10,9 +10,9 @@
 //! Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but the fixed chunking
 //! makes even those last bits reproducible.
 
+use crate::discrepancy::along_commands;
 use crate::ik::{Ik, IkResult};
 use crate::margin::Margins;
-use crate::discrepancy::along_commands;
 use crate::model::{ModelError, RowModel, RowSolver};
 use ctr_core::SolveError;
 use ctr_formats::parallel::{for_each_chunk, Progress};

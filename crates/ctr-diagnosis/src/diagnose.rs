@@ -38,7 +38,7 @@ pub fn diagnose(
     let (weighted, base) = simulated(model, rec)?;
     let start = Start::new(model, &weighted, base, opt)?;
     let found = forward_selection(&start, &opt.candidates)?;
-    let (established, removed, assessed) = settle(&start, found.clone(), opt.checks);
+    let (established, removed, assessed) = settle(&start, found.clone(), start.checks);
     let (found, only_established) = readmit(&start, found, established, removed);
     // the checks' assessment is of the established findings alone
     let assessed = assessed.filter(|_| only_established);

@@ -36,7 +36,13 @@ pub(crate) fn finish(
     let rec = start.rec;
     let mut found = found;
     without_each(&start, &mut found);
-    let verdict = Verdict::new(&start, &found.model, &found.e, &pred.margin);
+    let predictive: Vec<_> = found
+        .findings
+        .iter()
+        .filter(|f| f.grade == grade::Grade::Predictive)
+        .map(|f| f.effect)
+        .collect();
+    let verdict = Verdict::new(&start, &found.model, &found.e, &pred.margin, &predictive);
     let Found {
         model,
         mut findings,
@@ -63,7 +69,17 @@ pub(crate) fn finish(
         assessed,
         (!verdict.explained).then_some(&verdict.correction),
     );
-    grade::by_intervals(&mut findings);
+    if start.checks.present {
+        grade::by_intervals(&mut findings);
+    }
+    // a finding its intervals lowered to predictive no longer explains anything
+    let mut verdict = verdict;
+    verdict.lean_on(
+        findings
+            .iter()
+            .filter(|f| f.grade == grade::Grade::Predictive)
+            .map(|f| f.effect),
+    );
     let fit_share = start.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
     let next =
         assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));

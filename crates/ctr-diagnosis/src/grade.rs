@@ -90,10 +90,11 @@ pub fn absent_value(key: &str) -> Option<f64> {
 
 /// Whether at least one of `finding`'s parameters has a 95 % interval that excludes its
 /// "not there" value (a finding without parameters, torsion, has nothing to exclude and
-/// counts as excluding).
+/// counts as excluding; one whose parameters are identified only in combinations,
+/// `ci95.identified`, was judged on those by the checks' Wald test and counts too).
 pub(crate) fn present_beyond_doubt(finding: &Finding) -> bool {
-    let (parameters, _) = intervals(&finding.parameters, &finding.ci95);
-    if parameters.is_empty() {
+    let (parameters, identified) = intervals(&finding.parameters, &finding.ci95);
+    if parameters.is_empty() || !identified.is_empty() {
         return true;
     }
     parameters.iter().any(|p| {
@@ -118,5 +119,66 @@ pub(crate) fn by_intervals(findings: &mut [Finding]) {
                           holds the value that means it is not there: the data do not rule \
                           its absence out"
             .into();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::candidates::EffectId;
+    use serde_json::json;
+
+    fn finding(parameters: serde_json::Value, ci95: serde_json::Value) -> Finding {
+        Finding {
+            effect: EffectId::Precurvature,
+            grade: Grade::Established,
+            grade_reason: String::new(),
+            explanation: String::new(),
+            where_: String::new(),
+            parameters,
+            rms_mm_before: 0.0,
+            rms_mm_after: 0.0,
+            heldout_rms_mm_before: 0.0,
+            heldout_rms_mm_after: 0.0,
+            heldout_rms_deg: None,
+            empirical_heldout_rms_mm: f64::NAN,
+            ci95,
+            equally_explained_by: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_finding_whose_intervals_all_hold_not_there_is_only_predictive() {
+        // the issue's tracker-scale example: factors 0.98 and 1.06, both intervals
+        // holding 1
+        let mut f = vec![finding(
+            json!({"radius_factor": [0.98, 1.06]}),
+            json!({"radius_factor": [[0.95, 1.01], [0.99, 1.12]]}),
+        )];
+        by_intervals(&mut f);
+        assert_eq!(f[0].grade, Grade::Predictive);
+        // one interval excluding 1 keeps it established; a peak angle, which has no
+        // "not there", counts for nothing
+        let mut f = vec![finding(
+            json!({"radius_factor": [0.98, 1.06]}),
+            json!({"radius_factor": [[0.95, 1.01], [1.02, 1.12]]}),
+        )];
+        by_intervals(&mut f);
+        assert_eq!(f[0].grade, Grade::Established);
+        let mut f = vec![finding(
+            json!({"max_deflection_deg": [2.1], "peak_deg": [200.0]}),
+            json!({"max_deflection_deg": [[-0.17, 3.04]], "peak_deg": [[150.0, 250.0]]}),
+        )];
+        by_intervals(&mut f);
+        assert_eq!(f[0].grade, Grade::Predictive);
+        // parameters identified only in combinations: the checks' Wald test decided
+        let mut f = vec![finding(
+            json!({"factor": [1.0, 1.3]}),
+            json!({"factor": [[0.135, 7.389], [0.135, 7.389]], "identified": [
+                {"combination": "stiffness factor of tube 2 / stiffness factor of tube 1",
+                 "value": 1.3, "ci95": [1.29, 1.31]}]}),
+        )];
+        by_intervals(&mut f);
+        assert_eq!(f[0].grade, Grade::Established);
     }
 }

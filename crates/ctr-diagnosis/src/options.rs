@@ -30,7 +30,7 @@ pub struct Options {
 ///
 /// ```
 /// let all = ctr_diagnosis::Checks::default();
-/// assert!(all.beats_generic && all.constant && all.identified);
+/// assert!(all.beats_generic && all.constant && all.identified && all.present);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Checks {
@@ -40,6 +40,9 @@ pub struct Checks {
     pub constant: bool,
     /// Its parameters' joint 95 % region excludes the nominal.
     pub identified: bool,
+    /// At least one of its parameters' 95 % intervals excludes the value that means it
+    /// is not there (where its parameters are identified alone).
+    pub present: bool,
 }
 
 impl Default for Checks {
@@ -48,6 +51,7 @@ impl Default for Checks {
             beats_generic: true,
             constant: true,
             identified: true,
+            present: true,
         }
     }
 }

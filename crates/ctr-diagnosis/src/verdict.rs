@@ -5,8 +5,10 @@
 //! discrepancy of [`crate::empirical::gp`] is fitted too and reported in its place),
 //! tracker outliers are judged on what is left after
 //! both, and `explained` holds when the held-out RMS without them is at most
-//! [`NOISE_TOLERANCE`] times the noise's RMS.
+//! [`NOISE_TOLERANCE`] times the noise's RMS and no predictive finding (`crate::grade`)
+//! was needed to get there.
 
+use crate::candidates::EffectId;
 use crate::empirical::{gp, hybrid};
 use crate::locate::stability::Stability;
 use crate::report::prose::leftover;
@@ -39,14 +41,25 @@ pub(crate) struct Verdict {
     pub stability: Stability,
     /// The figures without the outlier rows.
     pub inliers: Figures,
-    /// Whether the held-out residual is consistent with the noise.
+    /// Whether the held-out residual is consistent with the noise with established
+    /// physics alone: at the noise, and no predictive finding needed to get there.
     pub explained: bool,
+    /// The predictive findings the residual needs to reach the noise, if it does (then
+    /// not explained: something outside the vocabulary may act like them).
+    pub leaning_on: Vec<EffectId>,
 }
 
 impl Verdict {
     /// The verdict on the fitted model `model` whose error vectors are `e` and stability
-    /// margins `margin` (per row, from the same simulation).
-    pub(crate) fn new(start: &Start, model: &ModelSpec, e: &[RowError], margin: &[f64]) -> Self {
+    /// margins `margin` (per row, from the same simulation), `predictive` its findings
+    /// graded predictive.
+    pub(crate) fn new(
+        start: &Start,
+        model: &ModelSpec,
+        e: &[RowError],
+        margin: &[f64],
+        predictive: &[EffectId],
+    ) -> Self {
         let rec = start.rec;
         let again = estimate_noise(rec, &positions(e));
         let noise = if again.sigma_mm_per_axis < start.noise.sigma_mm_per_axis
@@ -62,9 +75,17 @@ impl Verdict {
         let (outliers, outlier_threshold_mm) = outlier_rows(rec, &left);
         let stability = Stability::new(rec, start.warn_margin, &start.margin0, margin, &outliers);
         let inliers = inlier_figures(rec, e, &start.held, &outliers);
-        let explained = inliers.heldout_score() <= NOISE_TOLERANCE * noise.weighted_rms();
+        let at_noise = inliers.heldout_score() <= NOISE_TOLERANCE * noise.weighted_rms();
+        // the noise reached with findings whose form the data do not establish is no
+        // explanation: something outside the vocabulary may act like them
+        let explained = at_noise && predictive.is_empty();
+        let leaning_on = if at_noise {
+            predictive.to_vec()
+        } else {
+            Vec::new()
+        };
         // what no physics explains, learned over the joints and their history
-        let learned = (!explained).then(|| gp::fit(start, model, e)).flatten();
+        let learned = (!at_noise).then(|| gp::fit(start, model, e)).flatten();
         let (empirical, discrepancy) = match learned {
             Some((account, d, _)) => (account, Some(d)),
             None => (empirical, None),
@@ -79,6 +100,16 @@ impl Verdict {
             stability,
             inliers,
             explained,
+            leaning_on,
+        }
+    }
+
+    /// Where the residual is at the noise, `predictive` (the findings graded predictive
+    /// in the end) are what it leans on: not explained when there are any.
+    pub(crate) fn lean_on(&mut self, predictive: impl Iterator<Item = EffectId>) {
+        if self.explained || !self.leaning_on.is_empty() {
+            self.leaning_on = predictive.collect();
+            self.explained = self.leaning_on.is_empty();
         }
     }
 
@@ -90,6 +121,17 @@ impl Verdict {
         fig: &Figures,
         where_left: impl FnOnce() -> String,
     ) -> String {
+        if !self.leaning_on.is_empty() {
+            let names: Vec<&str> = self.leaning_on.iter().map(|c| c.as_str()).collect();
+            return format!(
+                "residual reaches the noise ({:.3} mm held out against {:.3} mm) only with \
+                 findings whose form the data do not establish ({}): something outside the \
+                 vocabulary may act like them, so the recording is not called explained",
+                self.inliers.heldout_rms_mm,
+                self.noise.rms_mm,
+                names.join(", ")
+            );
+        }
         leftover(
             start.rec,
             fig,

@@ -12,7 +12,7 @@ use crate::error::DiagnoseError;
 use crate::fit::Problem;
 use crate::locate::stability::checked_warn_margin;
 use crate::locate::{self, Statement};
-use crate::options::Options;
+use crate::options::{Checks, Options};
 use crate::report::{Figures, Noise};
 use crate::residual::{errors, figures, positions, RowError};
 use crate::start::noise::{estimate_noise, median};
@@ -55,6 +55,8 @@ pub(crate) struct Start<'a> {
     pub(crate) margin0: Vec<f64>,
     /// Rows whose margin is below this are near a snap.
     pub(crate) warn_margin: f64,
+    /// The acceptance checks that run (the grades' too).
+    pub(crate) checks: Checks,
 }
 
 /// `model`'s prediction of every run of `rec`, and `rec` with its angular columns
@@ -99,6 +101,7 @@ impl<'a> Start<'a> {
             threads: ctr_formats::parallel::resolve_threads(opt.threads),
             margin0: base.margin,
             warn_margin,
+            checks: opt.checks,
         })
     }
 

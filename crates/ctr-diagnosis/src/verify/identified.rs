@@ -50,7 +50,8 @@ impl Context<'_> {
                         },
                     ))
                 } else {
-                    (!present_beyond_doubt(&a, c)).then_some((c, Failure::MaybeAbsent))
+                    let absent = self.checks.present && !present_beyond_doubt(&a, c);
+                    absent.then_some((c, Failure::MaybeAbsent))
                 }
             })
             .collect();
@@ -60,10 +61,14 @@ impl Context<'_> {
 
 /// Whether at least one of `c`'s parameters that has a "not there" value (its
 /// [`EffectId::absence_of`]) has a 95 % interval `x_j +/- t sd_j` that excludes its
-/// nominal, the user's model having no such effect; a parameter not identified alone
-/// excludes nothing.
+/// nominal, the user's model having no such effect. Where some of its parameters are
+/// not identified alone (stiffness factors, of which kinematics see only ratios) the
+/// Wald test of the block, on the directions identified, has decided: present.
 fn present_beyond_doubt(a: &Assessment, c: EffectId) -> bool {
     let idx: Vec<usize> = (0..a.x.len()).filter(|&j| a.effects[j] == c).collect();
+    if idx.iter().any(|&j| a.unidentified[j]) {
+        return true;
+    }
     idx.iter().enumerate().any(|(i, &j)| {
         let sd = a.cov[(j, j)].max(0.0).sqrt();
         c.absence_of(i)

@@ -24,7 +24,6 @@ use solve::Inverse;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-
 /// The z value of a two-sided 95 % band (`fk(band=True)`, `ctr-cli fk --band`).
 const BAND_Z: f64 = 1.959_963_984_540_054;
 
@@ -292,18 +291,15 @@ impl Robot {
             })?);
         }
         if band {
-            let along = ctr_analysis::discrepancy::along_commands(
-                fkm.spec(),
-                &rows.data,
-                times.as_deref(),
-            )
-            .ok_or_else(|| {
-                errors::input(
+            let along =
+                ctr_analysis::discrepancy::along_commands(fkm.spec(), &rows.data, times.as_deref())
+                    .ok_or_else(|| {
+                        errors::input(
                     "band=True: the robot has no [model.discrepancy] (a learned discrepancy, \
                      written by ctr-cli diagnose --with-empirical)"
                         .into(),
                 )
-            })?;
+                    })?;
             let half: Vec<f64> = along.iter().map(|(_, sd)| BAND_Z * sd).collect();
             let m = rows.rows;
             out.push(per_row(py, rows.batched, half, |py, v| {
