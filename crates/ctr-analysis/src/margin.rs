@@ -43,6 +43,36 @@
 //! where `sigma` is zero and the margin's gradient is `grad sigma / (2 |grad sigma| D)`,
 //! a constant length: the margin is a distance.
 //!
+//! # Screening
+//!
+//! A warning needs the exact margin only where it may be below the warning margin `X`
+//! ([`Margins::Below`]). Rows whose `sigma` alone puts the fade's weight at or above
+//! `X` ([`Margin::at_least`]) are cleared without more; on the others (on nitinol3 about
+//! 7 % of a smooth trajectory's rows and 8 % of random rows) the core's analytic
+//! gradient of the softest mode ([`ctr_core::Solver::softest_mode_gradient`]: its
+//! singular vectors and two sensitivity passes: about one and a half solves' work on
+//! nitinol3, against the `4 n + 2` solves of the probes) gives the same formula's
+//! margin, and a row is cleared where that is at least [`SCREEN_FACTOR`] `X`. The
+//! warnings stay those of the exact margins, row for row:
+//!
+//! - the exact margin's forward differences of step [`PROBE_STEP`] are that gradient
+//!   plus their truncation (`h/2` times the second derivative: near a fold, where
+//!   `sigma ~ c sqrt(d)`, a relative `h / (4 d)`, 2.5e-4 a millimetre from it) as long
+//!   as every probe lies where the solver's discrete map is smooth (no cut passing
+//!   another, no section changing its step count), which the screen checks
+//!   ([`ctr_core::SoftestModeGradient::smooth_within_mm`]), else it leaves the row to
+//!   the probes;
+//! - the gradient itself is that of the twist equations, within 2.2e-4 of central
+//!   differences of solves (`ctr-core/tests/softest.rs`), and the probes' softest modes
+//!   are settled solves of the same equations;
+//! - so the two margins differ by far less than the factor's 10 %: by at most 5.5e-5
+//!   (relative) over the rows that reach the screen in `tests/snap.rs` (snapping sweeps,
+//!   random and smooth nitinol3 rows) and over the 28,500 of 200,000 smooth and 200,000
+//!   random nitinol3 rows. Where the analytic margin is at least `1.1 X` the exact one
+//!   is at least `X`: the row is no warning either way, and every row that may be one
+//!   gets its exact margin (`tests/snap.rs` compares screened and exact margins row for
+//!   row).
+//!
 //! The test suite holds it against an independent continuation of the seed's two-tube
 //! robot with 100 mm longer transmissions (`tests/snap.rs`): along 2-degree sweeps it is
 //! at most 0.05 in the last step before every snap, and lower there than anywhere along
@@ -84,6 +114,12 @@ pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
 /// fold): mm on feeds, degrees on rotations.
 pub const PROBE_STEP: f64 = 1e-3;
 
+/// How far above the warning margin (a factor, dimensionless) the margin from the
+/// softest mode's analytic gradient must be for [`Margins::Below`] to clear a row
+/// without the exact margin's probes ("Screening" in the module doc): 10 % against the
+/// two margins' difference, under 1e-3 (5e-5 measured on nitinol3).
+pub const SCREEN_FACTOR: f64 = 1.1;
+
 /// Most joints a margin has a gradient over (`2 MAX_TUBES`).
 pub const MAX_JOINTS: usize = 2 * MAX_TUBES;
 
@@ -93,9 +129,11 @@ pub enum Margins {
     /// None: the margin is NaN (a solve costs nothing more).
     #[default]
     Off,
-    /// Exactly where it may be below `X` (a warning margin); elsewhere the lower bound
-    /// the fade gives from `sigma` alone ([`Margin::at_least`], at least `X`), without
-    /// probing. Enough to tell the rows below `X` at a fraction of the cost.
+    /// Exactly where it may be below `X` (a warning margin); elsewhere a lower bound of
+    /// it, at least `X`, without probing: the fade's from `sigma` alone
+    /// ([`Margin::at_least`]), or the margin from the softest mode's analytic gradient
+    /// over [`SCREEN_FACTOR`] (module doc, "Screening"). Enough to tell the rows below
+    /// `X`, bit for bit as [`Margins::Exact`] gives them, at a fraction of the cost.
     Below(f64),
     /// Every row's, exactly.
     Exact,

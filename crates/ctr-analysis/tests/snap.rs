@@ -296,3 +296,125 @@ fn the_warnings_without_the_margin_column_are_those_of_the_exact_margins() {
         assert_eq!(screened, exact);
     }
 }
+
+/// Row for row, the margins `Margins::Below(x)` gives (the screen of `ctr-cli fk`'s
+/// warnings: the fade's bound, then the margin from the softest mode's analytic
+/// gradient, then the probes) against `Margins::Exact`: a row below `x` has its exact
+/// margin bit for bit, a row at or above it a lower bound of it that is at least `x`;
+/// where the analytic gradient cleared a row, its margin (the bound times
+/// `SCREEN_FACTOR`) is within `ANALYTIC_AGREEMENT` of the exact one, far inside the
+/// factor. On sweeps of the snapping pair (2 deg, and 0.05 deg towards two folds),
+/// random nitinol3 rows and a nitinol3 trajectory, for the default and wider warnings.
+#[test]
+fn the_screened_margins_are_the_exact_ones_below_the_warning_and_lower_bounds_above() {
+    use ctr_analysis::batch::{solve_rows, Rows};
+    use ctr_analysis::margin::{Margin, Margins, SCREEN_FACTOR};
+    /// The analytic margin against the exact one (relative, dimensionless): the
+    /// probes' truncation and the twist equations' discretisation (module doc of
+    /// `ctr_analysis::margin`, "Screening").
+    const ANALYTIC_AGREEMENT: f64 = 1e-3;
+    let snapping = ModelSpec::from_spec(&sweeps::long_transmissions(EXTRA_TRANSMISSION_MM))
+        .rows()
+        .unwrap();
+    let mut pair: Vec<f64> = Vec::new();
+    let relaxed = sweeps::relaxed_deg(&params());
+    for s1 in [28.0, 40.0, 55.0] {
+        let s = [s1, s1 + INNER_AHEAD_MM];
+        pair.extend(sweeps::full_turn(s, relaxed, STEP_DEG).as_flattened());
+    }
+    // towards the folds of s1 = 40 and 55 mm (forward, about 180-200 deg past relaxed)
+    for s1 in [40.0, 55.0] {
+        for k in 0..=600 {
+            let deg = relaxed + 170.0 + 0.05 * k as f64;
+            pair.extend([s1, 0.0, s1 + INNER_AHEAD_MM, deg]);
+        }
+    }
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../data/robots/nitinol3.toml"
+    );
+    let spec = ctr_formats::RobotSpec::from_bytes(std::fs::read(path).unwrap(), path).unwrap();
+    let nitinol3 = ModelSpec::from_spec(&spec).rows().unwrap();
+    // random rows (feed increments 10-50 mm, all rotations) and a smooth trajectory
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut uniform = move || {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut three: Vec<f64> = Vec::new();
+    for _ in 0..3000 {
+        let mut s = 0.0;
+        for _ in 0..3 {
+            s += 10.0 + 40.0 * uniform();
+            three.extend([s, 360.0 * uniform() - 180.0]);
+        }
+    }
+    for k in 0..6000 {
+        let t = 2.0 * std::f64::consts::PI * k as f64 / 6000.0;
+        let mut s = 0.0;
+        for i in 0..3 {
+            let f = 1.0 + i as f64;
+            s += 30.0 + 16.0 * (f * t + 0.3 * f).sin();
+            three.extend([s, 170.0 * (0.5 * f * t + f).sin()]);
+        }
+    }
+    for (name, model, joints) in [("pair", &snapping, &pair), ("nitinol3", &nitinol3, &three)] {
+        let rows = joints.len() / (2 * model.robot().n_tubes());
+        let solve = |margins| {
+            let mut out = Vec::with_capacity(rows);
+            solve_rows(
+                model,
+                Rows::Commanded(joints),
+                0..rows,
+                WARM_CHUNK_ROWS,
+                margins,
+                None,
+                |_, r| {
+                    out.push(r.unwrap());
+                    true
+                },
+            );
+            out
+        };
+        let exact = solve(Margins::Exact);
+        for warn in [DEFAULT_WARN_MARGIN, 0.1, 0.3] {
+            let screened = solve(Margins::Below(warn));
+            let (mut below, mut probed, mut analytic, mut worst) = (0, 0, 0, 0.0f64);
+            for (row, (e, s)) in exact.iter().zip(&screened).enumerate() {
+                assert_eq!(e.position, s.position, "{name} row {row}: the same solve");
+                let (e, s) = (e.stability_margin, s.stability_margin);
+                if e.is_nan() || e < warn {
+                    assert_eq!(e.to_bits(), s.to_bits(), "{name} {warn} row {row}");
+                    below += 1;
+                    continue;
+                }
+                assert!(
+                    s >= warn && s <= e + 1e-12,
+                    "{name} {warn} row {row}: {s} vs {e}"
+                );
+                if Margin::at_least(exact[row].softest_mode).value >= warn {
+                    // cleared by the softest mode alone
+                } else if s.to_bits() == e.to_bits() {
+                    probed += 1;
+                } else {
+                    analytic += 1;
+                    worst = worst.max((s * SCREEN_FACTOR / e - 1.0).abs());
+                }
+            }
+            eprintln!(
+                "{name}, warning {warn}: {below} of {rows} rows below (exact), {analytic} cleared by the analytic gradient (within {worst:.1e} of the exact margin), {probed} above it probed"
+            );
+            assert!(worst < ANALYTIC_AGREEMENT, "{name} {warn}: {worst}");
+            assert!(
+                analytic > 100,
+                "{name} {warn}: the screen cleared {analytic} rows"
+            );
+            // the pair snaps; nitinol3 comes within 0.3 (of 1) of a snap
+            if name == "pair" || warn >= 0.3 {
+                assert!(below > 0, "{name} {warn}: no row below the warning");
+            }
+        }
+    }
+}

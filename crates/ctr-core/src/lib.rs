@@ -56,8 +56,8 @@ pub use model::robot::{Field, Robot, RobotError, Tube, TubeParams};
 pub use real::Real;
 pub use solve::jacobian::{JointJacobian, ParameterJacobian};
 pub use solve::{
-    Derivative, Model, Request, Solution, SolveError, Solver, SolverConfig, Status, Unsupported,
-    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_STEP_MM, DEFAULT_STEP_FRACTION,
+    Derivative, Model, Request, SoftestModeGradient, Solution, SolveError, Solver, SolverConfig,
+    Status, Unsupported, DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_STEP_MM, DEFAULT_STEP_FRACTION,
 };
 
 /// Most tubes a robot may have.

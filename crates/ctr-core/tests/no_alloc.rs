@@ -1,6 +1,7 @@
 //! A solve allocates nothing: a counting global allocator sees zero allocations during
 //! every kind of request (warm, cold, rigid, backbone, joint and parameter Jacobians,
-//! effects with clearance kinks and friction moments, compliance, loads, f32; the
+//! effects with clearance kinks and friction moments, compliance, loads, f32, the
+//! softest mode's gradient; the
 //! bare-metal build in `tests/no-alloc` proves the same at link time).
 #![allow(unsafe_code)] // a GlobalAlloc impl is unsafe by definition
 
@@ -113,6 +114,13 @@ fn solves_allocate_nothing() {
                 .effects(&effects)
                 .loads(gravity);
             let weighed = solver3.solve(&robot3, loaded);
+            // the softest mode's gradient at the warm solution (and at the two-tube one)
+            let request = Request::new(q3, Model::Torsion).effects(&kinks);
+            let softest = solver3.softest_mode_gradient(&robot3, request, warm.as_ref().unwrap());
+            checksum += softest.unwrap().feed[0];
+            let request = Request::new(q2, Model::Torsion);
+            let softest = solver2.softest_mode_gradient(&robot2, request, two.as_ref().unwrap());
+            checksum += softest.unwrap().rotation[0];
             for sol in [warm, cold, rigid, traced, jacobian, composed, weighed] {
                 checksum += sol.unwrap().tip.position.x;
             }

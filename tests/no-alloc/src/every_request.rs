@@ -1,6 +1,6 @@
 //! Every kind of solve request (2 and 3 tubes, f64 and f32: torsion, rigid with
 //! backbone points, loads with the compliance, joint and parameter Jacobians, effects
-//! with clearance kinks and friction moments), linked into the firmware that has no
+//! with clearance kinks and friction moments, the softest mode's gradient), linked into the firmware that has no
 //! global allocator: the link is the proof that ctr-core never allocates.
 
 use ctr_core::{
@@ -41,6 +41,11 @@ fn solve3<T: ctr_core::Real>(x: T) -> T {
     let mut sum = T::zero();
     if let Ok(sol) = solver.solve(&robot, Request::new(q, Model::Torsion)) {
         sum += sol.tip.position.x + sol.tip.orientation().w;
+        // the softest mode's gradient at that solution
+        let request = Request::new(q, Model::Torsion);
+        if let Ok(g) = solver.softest_mode_gradient(&robot, request, &sol) {
+            sum += g.feed[0] + g.rotation[1] + g.smooth_within_mm;
+        }
     }
     if let Ok(sol) = solver.solve(&robot, Request::new(q, Model::Rigid).backbone(&mut pts)) {
         sum += sol.tip.position.y;

@@ -10,7 +10,7 @@
 //! simulation of recordings (and so the diagnosis) and the inverse kinematics all solve
 //! through it.
 
-use crate::margin::{self, Margin, Margins, PROBE_STEP};
+use crate::margin::{self, Margin, Margins, MAX_JOINTS, PROBE_STEP, SCREEN_FACTOR};
 use ctr_core::{
     Effects as CoreEffects, Gravity, JointJacobian, Joints, Loads, Model, Request, Robot, Solution,
     SolveError, Solver, MAX_TUBES,
@@ -91,6 +91,11 @@ impl<const N: usize> Kernel<N> {
             Margins::Below(x) if Margin::at_least(softest).value.abs() >= x => {
                 return Margin::at_least(softest)
             }
+            Margins::Below(x) => {
+                if let Some(m) = self.screen(solver, q, force_n, sol, x) {
+                    return m;
+                }
+            }
             _ => {}
         }
         if !softest.is_finite() || margin::is_far(softest) {
@@ -124,6 +129,49 @@ impl<const N: usize> Kernel<N> {
             };
         }
         Margin::new(at, &gradient[..2 * N])
+    }
+
+    /// The screen of [`Margins::Below`] (`warn`) on a row the softest mode alone does not
+    /// clear (see [`crate::margin`], "Screening"): the margin from the softest mode's
+    /// analytic gradient ([`Solver::softest_mode_gradient`], no solves) where it is at
+    /// least [`SCREEN_FACTOR`] times `warn` and every feed probe of the exact margin
+    /// (forward or backward, [`PROBE_STEP`]) lies within the stretch where the solver's
+    /// discrete map is smooth
+    /// ([`SoftestModeGradient::smooth_within_mm`](ctr_core::SoftestModeGradient)): then
+    /// the exact margin is at least `warn`, and this is the analytic margin over
+    /// [`SCREEN_FACTOR`], a lower bound of it. `None`: the exact margin is needed (loads,
+    /// a warning within reach, a cut or a step count within a probe's step).
+    fn screen(
+        &self,
+        solver: &Solver<f64, N>,
+        q: Joints<f64, N>,
+        force_n: [f64; 3],
+        sol: &Solution<f64, N>,
+        warn: f64,
+    ) -> Option<Margin> {
+        let request = self.request(q, force_n);
+        if request.loads.is_some() {
+            return None;
+        }
+        let g = solver
+            .softest_mode_gradient(&self.robot, request, sol)
+            .ok()?;
+        // the probes, forward or backward, within the smooth stretch
+        if g.smooth_within_mm <= PROBE_STEP {
+            return None;
+        }
+        // per mm on feeds, per degree on rotations, as the probes'
+        let per_degree = 1f64.to_radians();
+        let mut gradient = [0.0; 2 * MAX_TUBES];
+        for i in 0..N {
+            gradient[i] = g.feed[i];
+            gradient[N + i] = g.rotation[i] * per_degree;
+        }
+        let m = Margin::new(g.value, &gradient[..2 * N]);
+        (m.value >= SCREEN_FACTOR * warn).then(|| Margin {
+            value: m.value / SCREEN_FACTOR,
+            gradient: [0.0; MAX_JOINTS],
+        })
     }
 
     /// [`solve`](Self::solve) with the backbone points written into `points` (as far as

@@ -6,6 +6,8 @@
 //!   at most one tube is curved);
 //! - [`variations`]: the same with the sensitivities to the shooting unknowns carried
 //!   explicitly (Newton's Jacobian, a third of the cost of dual numbers);
+//! - [`sensitivities`]: the same on any directions of the unknowns and the joints (the
+//!   softest mode's gradient);
 //! - [`loaded`]: the Cosserat statics under gravity and tip loads;
 //! - [`pass`]: one pass from the guide exit to the tip (boundary conditions, tips,
 //!   clearance kinks, friction moments) for the unloaded systems;
@@ -14,6 +16,7 @@
 pub mod loaded;
 pub mod pass;
 pub mod pose;
+pub mod sensitivities;
 pub mod twist;
 pub mod variations;
 

@@ -99,7 +99,9 @@ pub(crate) trait Start<T, S, C, const N: usize>: TwistOde<T, S, C, N> + Sized {
 }
 
 /// The relative angles `(cos, sin)(psi_j - psi_n)` and twists `u_j` at the exit.
-fn values_at<T: Real, S: Num<T>, const N: usize>(exit: &GuideExit<S, N>) -> TwistState<S, N> {
+pub(crate) fn values_at<T: Real, S: Num<T>, const N: usize>(
+    exit: &GuideExit<S, N>,
+) -> TwistState<S, N> {
     let zero = S::cst(T::zero());
     let mut st = TwistState {
         z: [[zero; 2]; N],

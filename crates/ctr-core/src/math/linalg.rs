@@ -147,8 +147,21 @@ pub(crate) fn softest_direction<T: Real, const N: usize>(jac: &[[T; N]; N], m: u
         v[0] = T::one();
         return v;
     }
-    const PAD: f64 = 1e30;
-    let mut a = nalgebra::Matrix3::<T>::from_diagonal_element(c(PAD));
+    // the unused dimensions are padded with twice the block's Frobenius norm, more than
+    // any of its singular values (a fixed huge pad would swamp the block's eigenvalues
+    // in rounding: with 1e30, J^T J holds 1e60 and the 2 x 2 block's vectors are lost)
+    let mut fro = T::zero();
+    for row in jac.iter().take(m.min(3)) {
+        for v in row.iter().take(m.min(3)) {
+            fro += *v * *v;
+        }
+    }
+    let pad = if fro > T::zero() {
+        fro.sqrt() * c(2.0)
+    } else {
+        T::one()
+    };
+    let mut a = nalgebra::Matrix3::<T>::from_diagonal_element(pad);
     for i in 0..m.min(3) {
         for k in 0..m.min(3) {
             a[(i, k)] = jac[i][k];
@@ -189,5 +202,29 @@ mod tests {
         let v: [f64; 3] =
             softest_direction(&[[3.0, 0.0, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 2.0]], 3);
         assert!((v[1].abs() - 1.0).abs() < 1e-12 && v[0].abs() < 1e-12);
+    }
+
+    /// A 2 x 2 block in 3 x 3 arrays (a three-tube robot's shooting Jacobian): the right
+    /// singular vector of its smallest singular value, `J^T J v = sigma^2 v`, not an axis.
+    #[test]
+    fn the_softest_direction_of_a_two_by_two_block() {
+        let jac = [
+            [0.9755520014869622, 0.028339249963063806, 0.0],
+            [-1.2711266168363353, 0.2943040153961433, 0.0],
+            [0.0, 0.0, 0.0],
+        ];
+        let v: [f64; 3] = softest_direction(&jac, 2);
+        let sigma: f64 = smallest_singular_value(&jac, 2);
+        // J^T J v against sigma^2 v
+        let jv = [
+            jac[0][0] * v[0] + jac[0][1] * v[1],
+            jac[1][0] * v[0] + jac[1][1] * v[1],
+        ];
+        for k in 0..2 {
+            let jtjv = jac[0][k] * jv[0] + jac[1][k] * jv[1];
+            assert!((jtjv - sigma * sigma * v[k]).abs() < 1e-12, "{v:?}");
+        }
+        assert!((v[0] * v[0] + v[1] * v[1] - 1.0).abs() < 1e-12 && v[2] == 0.0);
+        assert!(v[0].abs() > 0.1, "{v:?}"); // not the axis the 1e30 pad gave
     }
 }

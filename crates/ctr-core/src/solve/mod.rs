@@ -14,7 +14,8 @@
 //! - [`newton`]: the one Newton loop;
 //! - [`shooting`]: the unloaded model (rigid, torsion, boundary friction moments);
 //! - [`loaded`]: the loaded model and its compliance;
-//! - [`jacobian`]: joint and parameter Jacobians from one dual-number pass.
+//! - [`jacobian`]: joint and parameter Jacobians from one dual-number pass;
+//! - [`softest`]: the softest mode's gradient over the joints (two dual-number passes).
 
 pub mod jacobian;
 pub mod loaded;
@@ -22,8 +23,10 @@ pub mod newton;
 pub mod request;
 pub mod shooting;
 mod snap;
+pub mod softest;
 
 pub use request::{Derivative, Request, SolveError, Unsupported};
+pub use softest::SoftestModeGradient;
 
 use crate::math::se3::Frame;
 use crate::model::joints::Joints;

@@ -15,6 +15,7 @@
 //! | boundary friction moments | no | yes | no |
 //! | joint or parameter Jacobian | yes | yes (with kinks, friction) | no |
 //! | compliance ([`Request::compliance`]) | no | yes (at zero load) | yes |
+//! | softest mode's gradient ([`Solver::softest_mode_gradient`](crate::Solver::softest_mode_gradient)) | yes (constant) | yes (no friction moments) | no |
 //! | backbone points | yes | yes | yes |
 
 use super::jacobian::{JointJacobian, ParameterJacobian};
@@ -153,6 +154,9 @@ pub enum Unsupported {
     FrictionWithLoads,
     /// A joint or parameter Jacobian under loads.
     JacobianWithLoads,
+    /// The softest mode's gradient under loads or with boundary friction moments (it is
+    /// computed for the unloaded, frictionless twist).
+    SoftestModeGradient,
 }
 
 impl fmt::Display for Unsupported {
@@ -172,6 +176,9 @@ impl fmt::Display for Unsupported {
             }
             Unsupported::JacobianWithLoads => {
                 "joint and parameter Jacobians under loads are not computed (the compliance is)"
+            }
+            Unsupported::SoftestModeGradient => {
+                "the softest mode's gradient is computed for the unloaded model without friction moments"
             }
         })
     }
