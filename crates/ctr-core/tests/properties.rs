@@ -142,12 +142,18 @@ fn every_solve_is_a_finite_pose_or_a_typed_error() {
             )
         })
     });
-    props::check(file!(), 384, strategy, |(params, draws, rigid, config)| {
-        with_n!(
-            params,
-            finite_or_error(&params, &draws, rigid, config, &stats)
-        )
-    });
+    props::check(
+        file!(),
+        "every_solve_is_a_finite_pose_or_a_typed_error",
+        384,
+        strategy,
+        |(params, draws, rigid, config)| {
+            with_n!(
+                params,
+                finite_or_error(&params, &draws, rigid, config, &stats)
+            )
+        },
+    );
     let [c, l, d, r] = *stats.borrow();
     eprintln!("solves: {c} converged, {l} at the iteration limit, {d} diverged, {r} refused");
 }
@@ -337,6 +343,7 @@ fn cold_and_warm_starts_agree_where_the_solution_is_unique() {
     let differ = RefCell::new([0usize; 2]);
     props::check(
         file!(),
+        "cold_and_warm_starts_agree_where_the_solution_is_unique",
         256,
         robot_and_draws(2..=4, 3),
         |(params, draws)| with_n!(params, cold_and_warm(&params, &draws, &differ)),
@@ -418,9 +425,13 @@ fn the_tip_is_continuous_along_small_steps_away_from_the_snap() {
             proptest::collection::vec(-1.0..=1.0f64, 2 * n),
         )
     });
-    props::check(file!(), 128, strategy, |(params, u, theta, dir)| {
-        with_n!(params, continuity(&params, &u, &theta, &dir, &steps))
-    });
+    props::check(
+        file!(),
+        "the_tip_is_continuous_along_small_steps_away_from_the_snap",
+        128,
+        strategy,
+        |(params, u, theta, dir)| with_n!(params, continuity(&params, &u, &theta, &dir, &steps)),
+    );
     let [taken, cut] = *steps.borrow();
     eprintln!("continuity: {taken} steps checked; {cut} paths stopped near the snap");
 }
@@ -512,6 +523,7 @@ fn joint_jacobian_is_central_differences() {
     let compared = RefCell::new(0usize);
     props::check(
         file!(),
+        "joint_jacobian_is_central_differences",
         192,
         (robot_and_draws(1..=4, 1), any::<bool>()),
         |((params, draws), rigid)| {
@@ -670,6 +682,7 @@ fn rigid_closed_form<const N: usize>(
 fn torsion_tends_to_the_rigid_closed_form_as_gj_grows() {
     props::check(
         file!(),
+        "torsion_tends_to_the_rigid_closed_form_as_gj_grows",
         192,
         robot_and_draws(1..=4, 1),
         |(params, draws)| {
