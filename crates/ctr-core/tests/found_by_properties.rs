@@ -437,3 +437,74 @@ fn coarse_steps_do_not_converge_to_a_root_of_the_discretisation() {
     assert!(d <= DEFAULT_STEPS_MM, "{d} mm from the tip of fine steps");
 }
 
+/// A multistable three-tube robot along steps of 0.05 mm and degrees, solved warm: the
+/// first solve lands on an unstable equilibrium, the second snaps to a stable one
+/// (softest mode 5.4), and the third, extrapolated along the line through those two
+/// solutions of different branches, was sent into a third equilibrium's basin: the tip
+/// jumped 208 mm where the Jacobians allow 0.04. The solver now extrapolates only
+/// along one branch (after a snap or a retry it starts from the last solution alone):
+/// the third solve continues the second's branch.
+#[test]
+fn a_warm_start_does_not_extrapolate_across_a_snap() {
+    let robot = Robot::new([
+        tube(
+            3.3350426230512973,
+            2.8670192823323615,
+            242.2280077708932,
+            177.52337933037288,
+            Some(33.969965372200456),
+            9386.798871738809,
+            0.3867565417351732,
+        ),
+        tube(
+            2.560092817889612,
+            1.8723799757312904,
+            281.46529729649285,
+            157.73002957693808,
+            Some(139.13149132612716),
+            65484.11431393781,
+            0.43923237567730217,
+        ),
+        tube(
+            1.8523799757312904,
+            1.0196955554462317,
+            331.81739172697064,
+            113.75274063637167,
+            Some(43.37332946699747),
+            43035.81173304449,
+            0.414351525866247,
+        ),
+    ])
+    .unwrap();
+    let path = [
+        Joints::new(
+            [229.2040382978194, 251.99813399128936, 273.0105955968339],
+            [-4.67026715071575, -1.756299278400498, -3.2706094708129623],
+        ),
+        Joints::new(
+            [229.20236053256178, 252.0097158195753, 273.0093082453248],
+            [-4.670287482866285, -1.7561411077314169, -3.2711251416275657],
+        ),
+        Joints::new(
+            [229.20068276730413, 252.02129764786122, 273.0080208938157],
+            [-4.67030781501682, -1.7559829370623354, -3.271640812442169],
+        ),
+    ];
+    let mut solver = Solver::default();
+    let sols = path.map(|q| {
+        solver
+            .solve(&robot, Request::new(q, Model::Torsion))
+            .unwrap()
+    });
+    // the path's premise: the first solve is unstable, the second snapped off it
+    assert!(
+        sols[0].softest_mode < 0.0 && sols[1].softest_mode > 1.0,
+        "{sols:?}"
+    );
+    let moved = (sols[2].tip.position - sols[1].tip.position).norm();
+    assert!(moved < 0.1, "the tip jumped {moved} mm: {sols:?}");
+    assert!(
+        (sols[2].softest_mode - sols[1].softest_mode).abs() < 1e-3,
+        "{sols:?}"
+    );
+}
