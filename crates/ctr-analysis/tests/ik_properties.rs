@@ -77,10 +77,23 @@ fn unique(params: &[TubeParams<f64>]) -> Vec<TubeParams<f64>> {
         .collect()
 }
 
-fn ik(params: &[TubeParams<f64>], limits: &[TubeLimits]) -> Option<Ik> {
+/// Further starts from the table after the first (the IK's default is 8). A kink of
+/// the forward kinematics (here a curved part's start at the guide exit, `s_1` equal
+/// to its curved length) is a trap for the Levenberg-Marquardt steps: the linear model
+/// of one side predicts a decrease across it that the other side's slope undoes, the
+/// steps shrink onto it and the start stalls there. In one target of 20,000 (the
+/// four-tube case in this property's regression file) the nine starts nearest the
+/// target all ended on that kink, 0.063 mm away; the tenth reached it. The property
+/// claims the target is reached from the table, so it lets more starts try.
+const REACH_RESTARTS: u32 = 32;
+
+/// The IK of a robot within `limits`, with a table of 64 starts and `restarts` further
+/// starts; `None` where the limits leave no joints.
+fn ik(params: &[TubeParams<f64>], limits: &[TubeLimits], restarts: u32) -> Option<Ik> {
     let robot = AnyRobot::new(params).expect("valid robot");
     let options = IkOptions {
         seed_samples: 64,
+        restarts,
         ..Default::default()
     };
     // limits that leave no joint vector within the tube lengths are refused (typed)
@@ -102,7 +115,7 @@ fn ik_of_a_reachable_target_reaches_it() {
         case(),
         |(params, limits, u)| {
             let params = unique(&params);
-            let Some(mut ik) = ik(&params, &limits) else {
+            let Some(mut ik) = ik(&params, &limits, REACH_RESTARTS) else {
                 return Err(TestCaseError::reject("limits leave no joints"));
             };
             let q = ik.limits().point(&u);
@@ -151,7 +164,7 @@ fn no_iterate_leaves_the_limits() {
         48,
         strategy,
         |((params, limits, u), far)| {
-            let Some(mut ik) = ik(&params, &limits) else {
+            let Some(mut ik) = ik(&params, &limits, IkOptions::default().restarts) else {
                 return Err(TestCaseError::reject("limits leave no joints"));
             };
             let robot = AnyRobot::new(&params).expect("valid robot");

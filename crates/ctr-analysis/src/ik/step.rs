@@ -228,7 +228,8 @@ impl Ik {
         lm.a.iter().all(|v| v.is_finite()) && lm.g.iter().all(|v| v.is_finite())
     }
 
-    /// `H = J^T W_E J + W_N`: the constant damping plus, adaptive, `lambda M`.
+    /// `H = J^T W_E J + W_N`: the constant damping plus, adaptive, `lambda M`. A
+    /// rotation's constant damping scales with its lever arm ([`lever_fraction`]).
     fn damped(&self, lm: &Lm) -> Square {
         let o = &self.options;
         let n = lm.q.len();
@@ -241,9 +242,10 @@ impl Ik {
             let (base, metric) = if k % 2 == 0 {
                 (o.damping_feed, 1.0)
             } else {
+                let scale_sq = o.rotation_scale_mm * o.rotation_scale_mm;
                 (
-                    o.damping_rotation,
-                    o.rotation_scale_mm * o.rotation_scale_mm,
+                    o.damping_rotation * lever_fraction(lm.a[(k, k)], scale_sq),
+                    scale_sq,
                 )
             };
             let adapt = if o.adaptive_damping {
@@ -493,6 +495,26 @@ struct Lm {
     /// accepted steps without progress in a row
     stalls: u32,
     iterations: u32,
+}
+
+/// Smallest [`lever_fraction`]: keeps `H` positive definite where a rotation does not
+/// move the tip at all (a straight innermost tube's own rotation, position target).
+const MIN_LEVER_FRACTION: f64 = 1e-12;
+
+/// The fraction of [`IkOptions::damping_rotation`] a rotation gets: `(l / L)^2`, at
+/// most 1, where `l^2 = (J^T W_E J)_kk` is the rotation's lever arm (the weighted tip
+/// motion per radian, mm) and `L = rotation_scale_mm` (its square `scale_sq`).
+///
+/// The constant damping (mm^2 per rad^2) is set for rotations that move the tip by
+/// about `L` per radian, where it is a millionth of their own curvature `l^2`. Held
+/// fixed, it swamps a rotation whose lever arm is tiny: with the tip 0.00045 mm off a
+/// one-tube robot's axis (`l^2` 2e-7 mm^2) each step took 0.2 % of the turn needed,
+/// and the IK stopped at `iteration_limit` 0.00049 mm from a reachable target. Scaled
+/// with `l^2`, it damps every rotation alike relative to its own effect.
+///
+/// [`IkOptions::damping_rotation`]: super::IkOptions::damping_rotation
+fn lever_fraction(lever_sq: f64, scale_sq: f64) -> f64 {
+    (lever_sq / scale_sq).clamp(MIN_LEVER_FRACTION, 1.0)
 }
 
 /// The largest joint move from `q` to `q_new` (mm or rad; a wrap of a full turn is no
