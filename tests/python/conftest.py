@@ -9,6 +9,16 @@ import threading
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# The property tests (hypothesis) draw the same examples on every run, as the Rust ones
+# do (a seed derived from each test; no example database carried between runs): two
+# runs of one commit, CI's included, test the same inputs. HYPOTHESIS_PROFILE=explore
+# draws fresh ones (scripts/explore_properties.sh; HYPOTHESIS_MAX_EXAMPLES for more);
+# a failure prints the falsifying example to keep as an @example of its test.
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("explore", derandomize=False, database=None, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 REPO = Path(__file__).resolve().parents[2]
 ROBOTS = sorted((REPO / "data" / "robots").glob("*.toml"))

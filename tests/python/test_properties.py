@@ -4,7 +4,8 @@ shapes or raise a typed ``ctr_py`` exception (a ``CtrError``), never crash the
 interpreter or raise anything else.
 
 Case counts: 150 examples per test (``HYPOTHESIS_MAX_EXAMPLES`` overrides them, for
-longer local runs).
+longer local runs). The examples are the same on every run (the ``ci`` profile of
+``conftest.py``); ``HYPOTHESIS_PROFILE=explore`` draws fresh ones.
 """
 
 import os

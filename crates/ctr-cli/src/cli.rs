@@ -499,7 +499,9 @@ pub struct IkArgs {
     #[arg(long, value_name = "W", default_value_t = IkOptions::default().damping_feed, value_parser = parse_positive)]
     pub damping_feed: f64,
 
-    /// Damping W_N on each rotation (mm^2 of tip error per rad^2 of rotation step).
+    /// Damping W_N on each rotation (mm^2 of tip error per rad^2 of rotation step), for
+    /// a rotation that moves the tip 10 mm or more per radian; one with a shorter lever
+    /// arm gets this times the square of its lever over 10 mm.
     #[arg(long, value_name = "W", default_value_t = IkOptions::default().damping_rotation, value_parser = parse_positive)]
     pub damping_rotation: f64,
 

@@ -6,7 +6,7 @@
 //!
 //! Every input that ever failed is kept under `tests/corpus/<reader>/` and replayed by
 //! [`the_corpus_replays`]; proptest's own regressions are in
-//! `fuzz_parsers.proptest-regressions`.
+//! `proptest-regressions/fuzz_parsers/`.
 //!
 //! Case counts (CI; `PROPTEST_CASES=n` runs `n` of each instead):
 //!
@@ -252,19 +252,25 @@ fn limits() -> impl Strategy<Value = TubeLimits> {
 /// bit for bit.
 #[test]
 fn robot_files_round_trip() {
-    props::check(file!(), 256, robot_file(), |file| {
-        let text = file.to_toml();
-        let back = RobotFile::parse(&text, "rt.toml")
-            .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
-        prop_assert_eq!(&back, &file, "{}", text);
-        let spec = RobotSpec::from_toml_str(&text, "rt.toml")
-            .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
-        let again = spec.to_toml();
-        let spec2 = RobotSpec::from_toml_str(&again, "rt.toml")
-            .map_err(|e| TestCaseError::fail(format!("{e}\n{again}")))?;
-        prop_assert_eq!(spec2, spec);
-        Ok(())
-    });
+    props::check(
+        file!(),
+        "robot_files_round_trip",
+        256,
+        robot_file(),
+        |file| {
+            let text = file.to_toml();
+            let back = RobotFile::parse(&text, "rt.toml")
+                .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
+            prop_assert_eq!(&back, &file, "{}", text);
+            let spec = RobotSpec::from_toml_str(&text, "rt.toml")
+                .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
+            let again = spec.to_toml();
+            let spec2 = RobotSpec::from_toml_str(&again, "rt.toml")
+                .map_err(|e| TestCaseError::fail(format!("{e}\n{again}")))?;
+            prop_assert_eq!(spec2, spec);
+            Ok(())
+        },
+    );
 }
 
 /// Any bytes, mostly a valid robot file mutated: `RobotSpec::from_bytes` does not panic,
@@ -272,7 +278,13 @@ fn robot_files_round_trip() {
 #[test]
 fn mutated_robot_files_fail_located() {
     let seed = robot_file().prop_map(|f| f.to_toml().into_bytes());
-    props::check(file!(), 1024, mutated(seed), |bytes| robot_bytes(&bytes));
+    props::check(
+        file!(),
+        "mutated_robot_files_fail_located",
+        1024,
+        mutated(seed),
+        |bytes| robot_bytes(&bytes),
+    );
 }
 
 fn robot_bytes(bytes: &[u8]) -> Result<(), TestCaseError> {
@@ -407,34 +419,43 @@ fn write_tables(t: &Tables) -> Vec<u8> {
 /// every carried field is the text written, on any number of threads.
 #[test]
 fn joint_and_target_files_round_trip() {
-    props::check(file!(), 256, tables(), |t| {
-        let bytes = write_tables(&t);
-        let robot = AnyRobot::new(&t.params).expect("valid robot");
-        let text = String::from_utf8_lossy(&bytes).into_owned();
-        let joints = JointTable::from_bytes(bytes.clone(), "rt.csv", &robot, t.threads)
-            .map_err(|e| TestCaseError::fail(format!("{e}\n{text:?}")))?;
-        prop_assert_eq!(joints.len(), t.rows.len(), "{:?}", text);
-        let targets = TargetTable::from_bytes(bytes, "rt.csv", false, t.threads)
-            .map_err(|e| TestCaseError::fail(format!("{e}\n{text:?}")))?;
-        prop_assert!(targets.has_orientation());
-        for r in 0..t.rows.len() {
-            prop_assert_eq!(joints.joints(r), &t.joints[r][..]);
-            let fields: Vec<&str> = joints.fields(r).take(t.input.len()).collect();
-            prop_assert_eq!(
-                fields,
-                t.rows[r].iter().map(String::as_str).collect::<Vec<_>>()
-            );
-            let target = targets.target(r);
-            prop_assert_eq!(target.position.as_slice(), &t.tips[r].position[..]);
-            let q = target.orientation.expect("pose");
-            let w = t.tips[r].quaternion;
-            prop_assert!(
-                (q.w - w[0]).abs() + (q.i - w[1]).abs() + (q.j - w[2]).abs() + (q.k - w[3]).abs()
-                    < 1e-15
-            );
-        }
-        Ok(())
-    });
+    props::check(
+        file!(),
+        "joint_and_target_files_round_trip",
+        256,
+        tables(),
+        |t| {
+            let bytes = write_tables(&t);
+            let robot = AnyRobot::new(&t.params).expect("valid robot");
+            let text = String::from_utf8_lossy(&bytes).into_owned();
+            let joints = JointTable::from_bytes(bytes.clone(), "rt.csv", &robot, t.threads)
+                .map_err(|e| TestCaseError::fail(format!("{e}\n{text:?}")))?;
+            prop_assert_eq!(joints.len(), t.rows.len(), "{:?}", text);
+            let targets = TargetTable::from_bytes(bytes, "rt.csv", false, t.threads)
+                .map_err(|e| TestCaseError::fail(format!("{e}\n{text:?}")))?;
+            prop_assert!(targets.has_orientation());
+            for r in 0..t.rows.len() {
+                prop_assert_eq!(joints.joints(r), &t.joints[r][..]);
+                let fields: Vec<&str> = joints.fields(r).take(t.input.len()).collect();
+                prop_assert_eq!(
+                    fields,
+                    t.rows[r].iter().map(String::as_str).collect::<Vec<_>>()
+                );
+                let target = targets.target(r);
+                prop_assert_eq!(target.position.as_slice(), &t.tips[r].position[..]);
+                let q = target.orientation.expect("pose");
+                let w = t.tips[r].quaternion;
+                prop_assert!(
+                    (q.w - w[0]).abs()
+                        + (q.i - w[1]).abs()
+                        + (q.j - w[2]).abs()
+                        + (q.k - w[3]).abs()
+                        < 1e-15
+                );
+            }
+            Ok(())
+        },
+    );
 }
 
 /// Any bytes, mostly a valid joint file mutated: the joint and target readers do not
@@ -445,9 +466,13 @@ fn mutated_tables_fail_located() {
     let seed = tables().prop_map(|t| (write_tables(&t), t.params));
     let strategy =
         seed.prop_flat_map(|(bytes, params)| (mutated(Just(bytes)), Just(params), any::<bool>()));
-    props::check(file!(), 1024, strategy, |(bytes, params, position_only)| {
-        table_bytes(&bytes, &params, position_only)
-    });
+    props::check(
+        file!(),
+        "mutated_tables_fail_located",
+        1024,
+        strategy,
+        |(bytes, params, position_only)| table_bytes(&bytes, &params, position_only),
+    );
 }
 
 fn table_bytes(
@@ -629,7 +654,7 @@ fn write_recording(r: &Rec) -> Vec<u8> {
 /// labels and runs, numbers bit for bit.
 #[test]
 fn recordings_round_trip() {
-    props::check(file!(), 256, recording(), |r| {
+    props::check(file!(), "recordings_round_trip", 256, recording(), |r| {
         let bytes = write_recording(&r);
         let text = String::from_utf8_lossy(&bytes).into_owned();
         let rec = Recording::read(&bytes[..], "rt.csv", r.n)
@@ -655,9 +680,13 @@ fn recordings_round_trip() {
 fn mutated_recordings_fail_located() {
     let seed = recording().prop_map(|r| (write_recording(&r), r.n));
     let strategy = seed.prop_flat_map(|(bytes, n)| (mutated(Just(bytes)), Just(n)));
-    props::check(file!(), 1024, strategy, |(bytes, n)| {
-        recording_bytes(&bytes, n)
-    });
+    props::check(
+        file!(),
+        "mutated_recordings_fail_located",
+        1024,
+        strategy,
+        |(bytes, n)| recording_bytes(&bytes, n),
+    );
 }
 
 fn recording_bytes(bytes: &[u8], n: usize) -> Result<(), TestCaseError> {

@@ -122,7 +122,13 @@ fn scan_accounts_for_every_byte() {
         1 => proptest::collection::vec(byte(), 0..64),
         2 => stream(),
     ];
-    props::check(file!(), 2048, strategy, |buf| scan_is_consistent(&buf));
+    props::check(
+        file!(),
+        "scan_accounts_for_every_byte",
+        2048,
+        strategy,
+        |buf| scan_is_consistent(&buf),
+    );
 }
 
 /// Drains a decoder.
@@ -139,9 +145,13 @@ fn frames(d: &mut Decoder) -> Vec<Frame> {
 #[test]
 fn chunked_reads_cut_the_same_frames() {
     let strategy = (stream(), proptest::collection::vec(1..16usize, 1..40));
-    props::check(file!(), 1024, strategy, |(bytes, cuts)| {
-        chunks(&bytes, &cuts)
-    });
+    props::check(
+        file!(),
+        "chunked_reads_cut_the_same_frames",
+        1024,
+        strategy,
+        |(bytes, cuts)| chunks(&bytes, &cuts),
+    );
 }
 
 fn chunks(bytes: &[u8], cuts: &[usize]) -> Result<(), TestCaseError> {
@@ -181,35 +191,41 @@ fn packets_round_trip_through_noise() {
         any::<u8>(),
         1..8usize,
     );
-    props::check(file!(), 1024, strategy, |(p, noise, error, chunk)| {
-        prop_assume!(!noise.windows(4).any(|w| w == HEADER));
-        let bytes = p.encode().expect("valid packet");
-        let mut d = Decoder::new();
-        let mut stream = noise.clone();
-        stream.extend(&bytes);
-        let mut got = Vec::new();
-        for c in stream.chunks(chunk) {
-            d.push(c);
-            got.extend(frames(&mut d));
-        }
-        prop_assert_eq!(got.len(), 1);
-        prop_assert_eq!(&got[0].raw, &bytes);
-        prop_assert_eq!(got[0].result.as_ref(), Ok(&p));
-        prop_assert_eq!(d.garbage_bytes() as usize, noise.len());
-        prop_assert!(d.pending().is_empty());
-        let status = StatusPacket::new(p.id, StatusError(error), p.params.clone());
-        let encoded = status.encode().expect("valid status");
-        let back = match scan(&encoded) {
-            Scan::Frame {
-                garbage: 0,
-                len,
-                result: Ok(packet),
-            } if len == encoded.len() => StatusPacket::from_packet(packet),
-            other => return Err(TestCaseError::fail(format!("{other:?}"))),
-        };
-        prop_assert_eq!(back, Ok(status));
-        Ok(())
-    });
+    props::check(
+        file!(),
+        "packets_round_trip_through_noise",
+        1024,
+        strategy,
+        |(p, noise, error, chunk)| {
+            prop_assume!(!noise.windows(4).any(|w| w == HEADER));
+            let bytes = p.encode().expect("valid packet");
+            let mut d = Decoder::new();
+            let mut stream = noise.clone();
+            stream.extend(&bytes);
+            let mut got = Vec::new();
+            for c in stream.chunks(chunk) {
+                d.push(c);
+                got.extend(frames(&mut d));
+            }
+            prop_assert_eq!(got.len(), 1);
+            prop_assert_eq!(&got[0].raw, &bytes);
+            prop_assert_eq!(got[0].result.as_ref(), Ok(&p));
+            prop_assert_eq!(d.garbage_bytes() as usize, noise.len());
+            prop_assert!(d.pending().is_empty());
+            let status = StatusPacket::new(p.id, StatusError(error), p.params.clone());
+            let encoded = status.encode().expect("valid status");
+            let back = match scan(&encoded) {
+                Scan::Frame {
+                    garbage: 0,
+                    len,
+                    result: Ok(packet),
+                } if len == encoded.len() => StatusPacket::from_packet(packet),
+                other => return Err(TestCaseError::fail(format!("{other:?}"))),
+            };
+            prop_assert_eq!(back, Ok(status));
+            Ok(())
+        },
+    );
 }
 
 /// The emulated servos, fed any bytes, never panic and answer with whole, valid status
@@ -228,7 +244,13 @@ fn the_emulator_answers_any_bytes_with_valid_frames() {
         ],
         1..6,
     );
-    props::check(file!(), 512, strategy, |writes| emulated(&writes));
+    props::check(
+        file!(),
+        "the_emulator_answers_any_bytes_with_valid_frames",
+        512,
+        strategy,
+        |writes| emulated(&writes),
+    );
 }
 
 fn emulated(writes: &[Vec<u8>]) -> Result<(), TestCaseError> {
@@ -265,6 +287,7 @@ fn the_bus_survives_any_reply() {
     ];
     props::check(
         file!(),
+        "the_bus_survives_any_reply",
         256,
         proptest::collection::vec(reply, 1..4),
         |replies| {

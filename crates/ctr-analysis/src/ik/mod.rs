@@ -10,9 +10,15 @@
 //! e   = target - tip(q)          position (mm), and orientation log(R_target R^T) (rad)
 //! E   = 1/2 e^T W_E e            W_E = diag(position_weight x3, orientation_weight x3)
 //! g   = J^T W_E e                J = d tip / d q (orientation rows: angular velocity in W)
-//! H   = J^T W_E J + W_N          W_N = diag(damping) + lambda diag(J^T W_E J)
+//! H   = J^T W_E J + W_N          W_N = diag(damping) + lambda M
 //! q' = q + dq,  dq = argmin 1/2 dq^T H dq - g^T dq  subject to the joint limits
 //! ```
+//!
+//! `M = diag(1, rotation_scale_mm^2, ...)` weighs a radian as `rotation_scale_mm`
+//! millimetres. The constant damping of a rotation, `damping_rotation`, scales with
+//! the square of its lever arm (`(J^T W_E J)_kk`, the tip's weighted motion per radian)
+//! below `rotation_scale_mm`: held fixed it would swamp a rotation whose tip is near
+//! its axis, and the steps would crawl (see [`IkOptions::damping_rotation`]).
 //!
 //! Without limits the step is the paper's `dq = H^-1 g`. Here each step is that small
 //! QP, solved with clarabel, so that `q + dq` satisfies the limits exactly: feed order

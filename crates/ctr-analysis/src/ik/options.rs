@@ -82,7 +82,11 @@ pub struct IkOptions {
     pub orientation_weight: f64,
     /// Constant part of `W_N` on each feed (mm^2 of tip error per mm^2 of feed).
     pub damping_feed: f64,
-    /// Constant part of `W_N` on each rotation (mm^2 of tip error per rad^2).
+    /// Constant part of `W_N` on each rotation (mm^2 of tip error per rad^2), for a
+    /// rotation whose lever arm (weighted tip motion per radian) is at least
+    /// `rotation_scale_mm`; one with a shorter lever arm `l` gets this times
+    /// `(l / rotation_scale_mm)^2`: the damping scales with the lever arm, so that it
+    /// never holds back a rotation whose tip is near its axis.
     pub damping_rotation: f64,
     /// Adapt `lambda M` on top of the constant damping (module docs).
     pub adaptive_damping: bool,

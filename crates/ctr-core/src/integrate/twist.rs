@@ -439,6 +439,52 @@ where
     }
 }
 
+/// Largest turn of a relative angle over one RK4 step of a coupled section, rad.
+///
+/// The section's own step ([`crate::model::sections`]) resolves the coupling's length
+/// scales, not the rates at which the relative angles turn, `u_j - u_n`. At an
+/// equilibrium those are small, but Newton's iterates can carry large ones: where a
+/// tube ends with a torque left (its residual), that torque passes to tube n, whose
+/// twist rate jumps by `G_j J_j / G_n J_n` times the tube's (629 times for a soft
+/// wire inside stiff tubes). RK4 on a turning angle `z' = i w z` is unstable beyond
+/// `w h` ~ 2.8 and already off by 0.5 % of a turn per step at `w h` = 1: past that the
+/// pass overflows or lands on a root of the discretisation rather than of the
+/// equations. So a coupled section takes at least the steps that keep every turn per
+/// step below this, at the rates it starts with.
+pub(crate) const MAX_TURN_PER_STEP: f64 = 1.0;
+
+/// Most RK4 steps [`turn_steps`] asks of one section: a bound on what an iterate far
+/// off costs (a turn of up to 64 rad across a section is resolved; a wandering
+/// iterate's rates beyond that are not, and its start fails as before, to be retried).
+/// With 4096, the IK's far targets on four-tube robots took 16 times as long.
+const MAX_TURN_STEPS: usize = 64;
+
+/// RK4 steps that keep every relative angle's turn per step at the rates of `st` (the
+/// section's start) below [`MAX_TURN_PER_STEP`] (1 when nothing turns).
+#[inline]
+fn turn_steps<T, S, C, const N: usize>(
+    sec: &TwistSection<T, S, C, N>,
+    st: &TwistState<S, N>,
+) -> usize
+where
+    T: Real,
+    S: Num<T> + Mul<C, Output = S>,
+    C: Copy,
+{
+    let un = sec.inner_twist(&st.w).re();
+    let mut rate = T::zero();
+    for j in 0..N - 1 {
+        if sec.present[j] {
+            rate = rate.max((st.w[j].re() - un).abs());
+        }
+    }
+    if rate > T::zero() {
+        steps(sec.len.re() * rate, c(MAX_TURN_PER_STEP)).min(MAX_TURN_STEPS)
+    } else {
+        1
+    }
+}
+
 /// Integrates the twist state across one section and moves `frame` along (tube n's
 /// material frame): RK4 with the Magnus pose step, or in closed form where at most one
 /// tube is curved (cut into steps of the RK4 length where the frame traces points).
@@ -475,7 +521,7 @@ pub(crate) fn section<T, S, C, St, F, const N: usize>(
         }
         return;
     }
-    let n = sec.steps;
+    let n = sec.steps.max(turn_steps(sec, st.values()));
     let h = sec.len / S::cst(nalgebra::convert(n as f64));
     let half = h * c::<T>(0.5);
     let sixth = h / S::cst(c(6.0));

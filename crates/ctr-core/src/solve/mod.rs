@@ -361,13 +361,22 @@ impl<T: Real, const N: usize> Solver<T, N> {
         }
     }
 
-    fn remember(&mut self, q: &Joints<T, N>, base_twist: &[T; N], margin: T) {
+    /// Keeps a converged solution for the next guess; `continued`: it continues the
+    /// branch of the last one (its warm start converged there), so that the two may be
+    /// extrapolated. After a snap or a retry the last one is forgotten: a line through
+    /// solutions on two branches points nowhere (along small joint steps it sent the
+    /// next guess into a third equilibrium's basin, the tip jumping 208 mm).
+    fn remember(&mut self, q: &Joints<T, N>, base_twist: &[T; N], margin: T, continued: bool) {
         self.warm.margin = margin;
         self.warm.x[1] = self.warm.x[0];
         self.warm.q[1] = self.warm.q[0];
         self.warm.x[0] = *base_twist;
         self.warm.q[0] = *q;
-        self.warm.count = (self.warm.count + 1).min(2);
+        self.warm.count = if continued {
+            (self.warm.count + 1).min(2)
+        } else {
+            1
+        };
     }
 }
 

@@ -247,7 +247,10 @@ impl<T: Real, const N: usize> Solver<T, N> {
         // a cold start that lands on an unstable equilibrium looks for a stable one
         let unstable =
             |sol: &Solution<T, N>| sol.status == Status::Converged && sol.softest_mode < T::zero();
-        if sol.status != Status::Converged || unstable(sol) {
+        // the answer continues the branch of the memory's guess (else it snapped, or a
+        // retry found it: the memory's older solution is then on another branch)
+        let continued = sol.status == Status::Converged && !unstable(sol);
+        if !continued {
             let iterations = sol.iterations;
             // from the last equilibrium (where the branch was stable), else from where
             // this solve ended: an unstable equilibrium's soft mode leads to the stable
@@ -300,7 +303,7 @@ impl<T: Real, const N: usize> Solver<T, N> {
             sol.iterations += iterations;
         }
         if sol.status == Status::Converged {
-            self.remember(q, &sol.base_twist_per_mm, sol.softest_mode);
+            self.remember(q, &sol.base_twist_per_mm, sol.softest_mode, continued);
         }
     }
 
