@@ -130,6 +130,13 @@
 //! the first in the file). Output rows are formatted into byte buffers, floats with
 //! `ryu` laid out as Rust's `Display` writes them.
 //!
+//! [`JointStream`] reads a joint file of any size in bounded memory: blocks of the file
+//! are cut into pieces of whole records on one thread (only line ends and quotes are
+//! looked at there), and each piece is parsed and checked where it is worked on, with
+//! the same rows, fields, values and errors as [`JointTable`]. A file that is not text
+//! (Parquet, gzip, a spreadsheet's workbook, UTF-16) is named as such instead of being
+//! refused as "not valid UTF-8 text".
+//!
 //! # Recording CSV (written by `ctr-cli hw run`)
 //!
 //! [`RecordingWriter`] writes [`recording_header`]:
@@ -161,13 +168,16 @@ mod csvout;
 mod effects;
 mod empirical;
 mod error;
+mod joint_stream;
 mod joints;
 mod output;
 pub mod parallel;
 mod recorded;
 mod recording;
+mod records;
 mod robot;
 mod robot_file;
+mod stream;
 mod table;
 mod targets;
 mod tips;
@@ -185,6 +195,7 @@ pub use effects::{
     SensorOffset, Stiffness, CLEARANCE_FIT_TABLE_SIZES,
 };
 pub use empirical::{Correction, Empirical, EmpiricalTerm, Feature, Term, AXES};
+pub use joint_stream::{JointParser, JointPiece, JointRows, JointStream};
 pub use joints::JointTable;
 pub use output::AtomicFile;
 pub use recorded::{AngularColumns, AngularWeight, RecordedRow, Recording, Run, UNIT_TOLERANCE};

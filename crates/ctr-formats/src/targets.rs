@@ -167,7 +167,7 @@ impl TargetTable {
 
     /// True when the targets are poses (the file has `qw,qx,qy,qz` and they are read).
     pub fn has_orientation(&self) -> bool {
-        self.table.has_optional
+        self.table.header.has_optional
     }
 
     /// The target of data row `row` (its quaternion normalised).
