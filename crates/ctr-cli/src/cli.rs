@@ -442,6 +442,11 @@ pub struct FkArgs {
     /// snap); 0 turns the warnings off.
     #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN)]
     pub warn_margin: f64,
+
+    /// Print where the time went to stderr: setting up, reading the joint file, the
+    /// workers (parsing, solving, formatting), writing, finishing; wall and CPU times.
+    #[arg(long)]
+    pub profile: bool,
 }
 
 /// Options of `ctr-cli ik`.

@@ -200,7 +200,9 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
         margin: args.margin,
         warn_margin: (args.warn_margin > 0.0).then_some(args.warn_margin),
     };
-    let summary = run_fk(&job, &progress::Bar::default()).map_err(|e| {
+    let started = std::time::Instant::now();
+    let bar = progress::Bar::profiled(args.profile);
+    let summary = run_fk(&job, &bar).map_err(|e| {
         if e.is_solver_failure() {
             Failure::Solver(format!(
                 "{e} (--on-error skip or mark writes the other rows)"
@@ -209,6 +211,10 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
             Failure::Input(e.to_string())
         }
     })?;
+    if args.profile {
+        let threads = ctr_formats::parallel::resolve_threads(job.threads);
+        eprint!("{}", bar.profile(summary.rows, threads, started.elapsed()));
+    }
     let what = if job.on_error == OnError::Skip {
         "skipped"
     } else {

@@ -1,0 +1,573 @@
+//! The forward-kinematics job ([`run_fk`]): the joint file streamed through the workers
+//! in pieces, the tips written in order as they come.
+
+use super::time::{self, Series};
+use super::{input_name, model_error, read_robot, Input, OnError, Output, Sink};
+use crate::batch::{branch_changed, solve_rows, Rows, WARM_CHUNK_ROWS};
+use crate::margin::Margins;
+use crate::model::{ModelSpec, RowModel, RowSolver};
+use ctr_core::{Model, SolveError, Status};
+use ctr_formats::parallel::{stream, Progress};
+use ctr_formats::{tip_header_for, write_header, write_tip_row_for, JointRows, RobotSpec};
+use ctr_formats::{Error, ErrorKind, Location};
+use ctr_formats::{FkResult, JointParser, JointPiece, JointStream, TipColumns};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// A forward-kinematics job.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FkJob {
+    /// The robot TOML.
+    pub robot: Input,
+    /// The joint CSV.
+    pub joints: Input,
+    /// The tip CSV.
+    pub output: Output,
+    /// Overrides the robot file's `[model] kind`.
+    pub model: Option<Model>,
+    /// Policy for rows that did not converge.
+    pub on_error: OnError,
+    /// Worker threads, 0 = all cores (the output does not depend on it).
+    pub threads: usize,
+    /// Append the `stability_margin` column.
+    pub margin: bool,
+    /// Report the runs of rows whose stability margin is below this
+    /// ([`FkSummary::low_margin`]).
+    pub warn_margin: Option<f64>,
+}
+
+/// A run of consecutive rows whose stability margin is below the warning margin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LowMargin {
+    /// 1-based lines of the run's first and last row in the joint file.
+    pub lines: (usize, usize),
+    /// Rows in the run.
+    pub rows: usize,
+    /// The smallest margin in the run, and its line.
+    pub min: (f64, usize),
+}
+
+/// A row whose solve did not converge.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowFailure {
+    /// 1-based line in the joint file.
+    pub line: usize,
+    /// How the solve ended.
+    pub status: Status,
+    /// Its residual, rad/mm.
+    pub residual_per_mm: f64,
+}
+
+/// What a finished job did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FkSummary {
+    /// The joint file's name as used in messages.
+    pub joints_file: String,
+    /// Rows solved.
+    pub rows: usize,
+    /// Rows written.
+    pub written: usize,
+    /// Rows that did not converge (skipped or marked), in input order.
+    pub failures: Vec<RowFailure>,
+    /// Runs of rows below [`FkJob::warn_margin`], in input order.
+    pub low_margin: Vec<LowMargin>,
+}
+
+/// Warm-start chunks of the batch in a piece of rows a worker takes at a time (the
+/// output does not depend on it: see [`run_fk`]).
+const PIECE_CHUNKS: usize = 16;
+
+/// Rows in a piece.
+const PIECE_ROWS: usize = WARM_CHUNK_ROWS * PIECE_CHUNKS;
+
+/// Pieces between the reader and the writer at once, per worker thread: what bounds
+/// the memory of a job (with [`PIECE_ROWS`] and the reader's block).
+const PIECES_PER_THREAD: usize = 4;
+
+/// Runs a job; see the module docs for the order of work.
+///
+/// The robot file's whole model is solved ([`RowModel`]: `[model] kind`, or
+/// `job.model`, and every table of `[model.effects]`). With time effects (latency,
+/// friction with a non-zero play) the rows are time series: a `t_s` column gives their
+/// times, a `run` column cuts them into runs (contiguous rows with the same label; the
+/// whole file without it), each simulated on its own in file order; without `t_s` the
+/// row order stands for time, and latency is refused.
+///
+/// Without time effects the joint file is streamed: a reader cuts it into pieces of
+/// whole warm-start chunks ([`crate::batch::solve_rows`]), the workers parse, check,
+/// solve and format a piece each, and the pieces are written in order: memory stays
+/// bounded whatever the file's size (with a file as output; standard output is
+/// written at the end). The result is the same, bit for bit, for any thread count and
+/// as if the file had been read whole: a piece whose first row lies on another branch
+/// than the piece before ended on is solved again after it. With time effects every row
+/// is read first (the effects act along the rows).
+///
+/// Errors are those of reading every row before solving any: the first bad row of the
+/// file, else a bad time series, a clashing output column or output path, a row the
+/// model cannot solve, a failed write, and last the rows that did not converge (under
+/// [`OnError::Fail`]).
+pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> {
+    let started = Instant::now();
+    let robot_name = input_name(&job.robot);
+    let spec = read_robot(&job.robot)?;
+    let fkm = fk_model(job, &spec, &robot_name)?;
+    let mut joints = open_joints(&job.joints, &spec)?;
+    let parser = joints.parser();
+    let mut run = Run::new(job, joints.file());
+    if fkm.needs_time() {
+        let pieces = read_every_row(&mut joints, &parser, job.threads)?;
+        let rows = time::Rows {
+            pieces: &pieces,
+            file: joints.file(),
+            header: joints.header(),
+            header_line: joints.header_line(),
+        };
+        let series = time::time_series(&rows, &fkm, &robot_name)?;
+        run.open(joints.header(), &job.output)?;
+        let ctx = Context::new(job, &fkm, &parser, run.columns, Some(&series));
+        progress.start(pieces.iter().map(JointRows::len).sum());
+        run.streaming = Some(started.elapsed());
+        let mut pieces = pieces.into_iter();
+        run.solve(&ctx, || pieces.next().map(Item::Parsed), progress);
+    } else {
+        let ctx = Context::new(job, &fkm, &parser, run.columns, None);
+        if let Err(e) = run.open(joints.header(), &job.output) {
+            // reported only when every row reads well
+            run.fail(&ctx, e);
+        }
+        progress.start(joints.estimated_rows().unwrap_or(0));
+        run.streaming = Some(started.elapsed());
+        run.solve(
+            &ctx,
+            || joints.next_piece(PIECE_ROWS).map(Item::Raw),
+            progress,
+        );
+    }
+    progress.finish();
+    let before = run.streaming.unwrap_or_default();
+    let streamed = Instant::now();
+    let result = run.finish();
+    if let Some(stages) = progress.stages() {
+        stages.add_around(before, streamed.elapsed());
+    }
+    result
+}
+
+/// The row model a job solves: the robot file's, with `job.model` for its kind.
+fn fk_model(job: &FkJob, spec: &RobotSpec, robot_name: &str) -> Result<RowModel, Error> {
+    let mut m = ModelSpec::from_spec(spec);
+    m.model = job.model.unwrap_or(spec.model);
+    m.rows().map_err(|e| model_error(robot_name, e))
+}
+
+/// Starts reading the joint file (its header is checked here).
+fn open_joints(input: &Input, spec: &RobotSpec) -> Result<JointStream<'static>, Error> {
+    match input {
+        Input::Stdin => JointStream::from_reader(std::io::stdin(), "<stdin>", &spec.robot),
+        Input::Path(p) => JointStream::from_path(p, &spec.robot),
+    }
+}
+
+/// Every row of the joint file, parsed and checked in parallel, in pieces in file
+/// order; the error is the file's first.
+fn read_every_row(
+    joints: &mut JointStream<'_>,
+    parser: &JointParser,
+    threads: usize,
+) -> Result<Vec<JointRows>, Error> {
+    let mut pieces = Vec::new();
+    let mut first_error = None;
+    let in_flight = PIECES_PER_THREAD * ctr_formats::parallel::resolve_threads(threads);
+    stream(
+        threads,
+        in_flight,
+        None,
+        || joints.next_piece(PIECE_ROWS),
+        || (),
+        |(), piece: JointPiece| piece.parse(parser),
+        |rows| match rows {
+            Ok(rows) => {
+                pieces.push(rows);
+                true
+            }
+            Err(e) => {
+                first_error = Some(e);
+                false
+            }
+        },
+    );
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(pieces),
+    }
+}
+
+/// What a worker is given: a piece to parse, or rows read already.
+enum Item {
+    Raw(JointPiece),
+    Parsed(JointRows),
+}
+
+/// What the workers share.
+struct Context<'a> {
+    job: &'a FkJob,
+    fkm: &'a RowModel,
+    parser: &'a JointParser,
+    columns: TipColumns,
+    /// the rows' actual joints and times, for a model with time effects
+    series: Option<&'a Series>,
+    /// set once the job has failed: the workers only parse (the first bad row of the
+    /// file still comes first)
+    stop: AtomicBool,
+}
+
+/// A piece of rows worked on: parsed, and solved and formatted unless the job had
+/// failed by then.
+struct Done<'m> {
+    rows: Result<JointRows, Error>,
+    chunk: Option<Chunk<'m>>,
+}
+
+/// One piece's rows, formatted, and the solver they left.
+struct Chunk<'m> {
+    text: Vec<u8>,
+    written: usize,
+    failures: Vec<RowFailure>,
+    /// the first row (of the piece) the model could not solve
+    row_error: Option<(usize, SolveError)>,
+    /// each row's margin, in order
+    margins: Vec<f64>,
+    first: Option<FkResult>,
+    end: Option<RowSolver<'m>>,
+}
+
+impl<'a> Context<'a> {
+    fn new(
+        job: &'a FkJob,
+        fkm: &'a RowModel,
+        parser: &'a JointParser,
+        columns: TipColumns,
+        series: Option<&'a Series>,
+    ) -> Self {
+        Context {
+            job,
+            fkm,
+            parser,
+            columns,
+            series,
+            stop: AtomicBool::new(false),
+        }
+    }
+
+    /// Parses (if need be), solves and formats one piece.
+    fn work(&self, item: Item) -> Done<'a> {
+        let rows = match item {
+            Item::Raw(piece) => piece.parse(self.parser),
+            Item::Parsed(rows) => Ok(rows),
+        };
+        let chunk = match &rows {
+            Ok(rows) if !self.stop.load(Ordering::Relaxed) => Some(self.solve(rows, None)),
+            _ => None,
+        };
+        Done { rows, chunk }
+    }
+
+    /// The joints of `rows` as the batch solves them: commanded, or actual under time
+    /// effects.
+    fn joints<'r>(&'r self, rows: &'r JointRows) -> Rows<'r> {
+        match self.series {
+            Some(series) => {
+                let w = 2 * self.fkm.robot().n_tubes();
+                let span = rows.first_row()..rows.first_row() + rows.len();
+                Rows::Actual {
+                    actual: &series.actual[span.start * w..span.end * w],
+                    commanded: rows.all_joints(),
+                    t_s: series.t_s.as_ref().map(|t| &t[span]),
+                }
+            }
+            None => Rows::Commanded(rows.all_joints()),
+        }
+    }
+
+    /// Solves and formats `rows`, after `after` (the solver the piece before ended
+    /// with) or from a fresh start.
+    fn solve(&self, rows: &JointRows, after: Option<&RowSolver<'a>>) -> Chunk<'a> {
+        let job = self.job;
+        let mut chunk = Chunk {
+            text: Vec::with_capacity(rows.len() * (self.parser.columns() * 12 + 180)),
+            written: 0,
+            failures: Vec::new(),
+            row_error: None,
+            margins: Vec::with_capacity(rows.len()),
+            first: None,
+            end: None,
+        };
+        // the column wants every margin, a warning only those below it
+        let margins = match (job.margin, job.warn_margin) {
+            (true, _) => Margins::Exact,
+            (false, Some(x)) => Margins::Below(x),
+            (false, None) => Margins::Off,
+        };
+        let skip = job.on_error == OnError::Skip;
+        let joints = self.joints(rows);
+        let all = 0..rows.len();
+        let end = solve_rows(
+            self.fkm,
+            joints,
+            all,
+            WARM_CHUNK_ROWS,
+            margins,
+            after,
+            |r, solved| {
+                let fk = match solved {
+                    Ok(fk) => fk,
+                    Err(e) => {
+                        chunk.row_error = Some((r, e));
+                        return false;
+                    }
+                };
+                if r == 0 {
+                    chunk.first = Some(fk);
+                }
+                // a row that did not converge has no margin to warn of
+                let converged = fk.status == Status::Converged;
+                chunk.margins.push(if converged {
+                    fk.stability_margin
+                } else {
+                    f64::NAN
+                });
+                if !converged {
+                    chunk.failures.push(RowFailure {
+                        line: rows.line(r),
+                        status: fk.status,
+                        residual_per_mm: fk.residual_per_mm,
+                    });
+                    if skip {
+                        return true;
+                    }
+                }
+                write_tip_row_for(&mut chunk.text, rows.carried(r), &fk, self.columns);
+                chunk.written += 1;
+                true
+            },
+        );
+        chunk.end = Some(end);
+        chunk
+    }
+}
+
+/// The job's state as the pieces come back in order.
+struct Run<'j> {
+    job: &'j FkJob,
+    file: String,
+    columns: TipColumns,
+    sink: Option<Sink>,
+    /// rows read
+    rows: usize,
+    written: usize,
+    failures: Vec<RowFailure>,
+    low: LowRuns,
+    /// the first bad row of the input: ends the job
+    bad_row: Option<Error>,
+    /// when the stream started (after setting up), for the stages' times
+    streaming: Option<Duration>,
+    /// a clashing output header or output path (reported once every row has been
+    /// read), a row the model could not solve, or a failed write
+    failed: Option<Error>,
+}
+
+impl<'j> Run<'j> {
+    fn new(job: &'j FkJob, file: &str) -> Self {
+        Run {
+            job,
+            file: file.to_owned(),
+            columns: TipColumns {
+                status: job.on_error == OnError::Mark,
+                margin: job.margin,
+            },
+            sink: None,
+            rows: 0,
+            written: 0,
+            failures: Vec::new(),
+            low: LowRuns::new(job.warn_margin),
+            bad_row: None,
+            streaming: None,
+            failed: None,
+        }
+    }
+
+    /// Checks the output header and opens the output, writing the header.
+    fn open(&mut self, input_header: &[String], output: &Output) -> Result<(), Error> {
+        let header = tip_header_for(input_header, self.columns)
+            .map_err(|kind| Error::new(Location::line(&self.file, 1), kind))?;
+        let mut sink = Sink::open(output)?;
+        let mut head = Vec::new();
+        write_header(&mut head, &header);
+        sink.write(&head)?;
+        self.sink = Some(sink);
+        Ok(())
+    }
+
+    /// Streams the items of `source` through the workers and takes their pieces in
+    /// order.
+    fn solve<'a>(
+        &mut self,
+        ctx: &Context<'a>,
+        source: impl FnMut() -> Option<Item> + Send,
+        progress: &dyn Progress,
+    ) {
+        let threads = ctr_formats::parallel::resolve_threads(self.job.threads);
+        let mut last: Option<RowSolver<'a>> = None;
+        stream(
+            threads,
+            PIECES_PER_THREAD * threads,
+            progress.stages(),
+            source,
+            || (),
+            |(), item| ctx.work(item),
+            |done| {
+                let rows = done.rows.as_ref().map_or(0, JointRows::len);
+                let more = self.take(ctx, done, &mut last);
+                progress.advance(rows);
+                more
+            },
+        );
+    }
+
+    /// Takes the next piece in order: checks its branch against the piece before,
+    /// gathers its warnings and writes it. `false` ends the stream (a bad row).
+    fn take<'a>(
+        &mut self,
+        ctx: &Context<'a>,
+        done: Done<'a>,
+        last: &mut Option<RowSolver<'a>>,
+    ) -> bool {
+        let rows = match done.rows {
+            Ok(rows) => rows,
+            Err(e) => {
+                self.bad_row = Some(e);
+                return false;
+            }
+        };
+        self.rows += rows.len();
+        let Some(mut chunk) = done.chunk.filter(|_| self.failed.is_none()) else {
+            return true;
+        };
+        if let (Some(after), Some(first)) = (&*last, &chunk.first) {
+            let first = Ok(*first);
+            if branch_changed(
+                ctx.fkm,
+                ctx.joints(&rows),
+                0,
+                WARM_CHUNK_ROWS,
+                after,
+                &first,
+            ) {
+                chunk = ctx.solve(&rows, Some(after));
+            }
+        }
+        *last = chunk.end.take();
+        if let Some((r, e)) = chunk.row_error {
+            let at = Location::line(&self.file, rows.line(r));
+            self.fail(ctx, Error::new(at, ctx.fkm.row_error(e)));
+            return true;
+        }
+        for (k, m) in chunk.margins.iter().enumerate() {
+            self.low.row(rows.first_row() + k, rows.line(k), *m);
+        }
+        self.failures.extend(chunk.failures);
+        if self.job.on_error == OnError::Fail && !self.failures.is_empty() {
+            // nothing will be written: keep solving only to count the failures
+            return true;
+        }
+        self.written += chunk.written;
+        if let Some(Err(e)) = self.sink.as_mut().map(|s| s.write(&chunk.text)) {
+            self.fail(ctx, e);
+        }
+        true
+    }
+
+    /// The job failed (the output, a row the model cannot solve, a write): the rest
+    /// is only read.
+    fn fail(&mut self, ctx: &Context<'_>, e: Error) {
+        self.failed = Some(e);
+        ctx.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// The job's outcome, the errors in order (see [`run_fk`]); on success the output
+    /// is put in place.
+    fn finish(self) -> Result<FkSummary, Error> {
+        if let Some(e) = self.bad_row.or(self.failed) {
+            return Err(e);
+        }
+        if self.job.on_error == OnError::Fail {
+            if let Some(first) = self.failures.first() {
+                return Err(Error::new(
+                    Location::line(&self.file, first.line),
+                    ErrorKind::SolverFailed {
+                        status: first.status,
+                        residual_per_mm: first.residual_per_mm,
+                        failed: self.failures.len(),
+                        rows: self.rows,
+                    },
+                ));
+            }
+        }
+        if let Some(sink) = self.sink {
+            sink.commit()?;
+        }
+        Ok(FkSummary {
+            joints_file: self.file,
+            rows: self.rows,
+            written: self.written,
+            failures: self.failures,
+            low_margin: self.low.finish(),
+        })
+    }
+}
+
+/// Gathers the runs of consecutive rows whose margin is below a warning margin.
+struct LowRuns {
+    below: Option<f64>,
+    runs: Vec<LowMargin>,
+    /// the row after the open run's last
+    next: usize,
+}
+
+impl LowRuns {
+    fn new(below: Option<f64>) -> Self {
+        LowRuns {
+            below,
+            runs: Vec::new(),
+            next: usize::MAX,
+        }
+    }
+
+    /// Row `row` (at `line`) has margin `m`; rows come in order.
+    fn row(&mut self, row: usize, line: usize, m: f64) {
+        let Some(below) = self.below else { return };
+        // a NaN margin (a row that did not solve) is not a low one
+        if m.is_nan() || m >= below {
+            return;
+        }
+        match self.runs.last_mut() {
+            Some(run) if self.next == row => {
+                run.lines.1 = line;
+                run.rows += 1;
+                if m < run.min.0 {
+                    run.min = (m, line);
+                }
+            }
+            _ => self.runs.push(LowMargin {
+                lines: (line, line),
+                rows: 1,
+                min: (m, line),
+            }),
+        }
+        self.next = row + 1;
+    }
+
+    fn finish(self) -> Vec<LowMargin> {
+        self.runs
+    }
+}
