@@ -3,17 +3,23 @@
 //! any ([`JointPiece::parse`]), so that a file of any size goes through in bounded
 //! memory and the parsing runs in parallel.
 //!
-//! The rows, their lines, fields, values and errors are those of [`JointTable`]: a
-//! piece is read by the same machinery, and taking the pieces in order gives the first
-//! error of the file first.
+//! A CSV file's rows, their lines, fields, values and errors are those of
+//! [`JointTable`]: a piece is read by the same machinery, and taking the pieces in
+//! order gives the first error of the file first. A Parquet file (`*.parquet`, or a
+//! file that starts as one) is read a bounded number of rows at a time, whatever its
+//! row groups; its rows are numbered from 1 in errors (`j.parquet: row 17: ...`).
 //!
 //! [`JointTable`]: crate::JointTable
 
+use crate::columnar::read::ParquetReader;
+use crate::columnar::table::{numbers_only, parquet_values};
+use crate::columnar::{is_parquet, Batch, Column, ColumnType, MAGIC};
 use crate::error::{Error, ErrorKind, Location};
-use crate::robot::{joint_columns, AnyRobot};
+use crate::robot::{joint_columns, tube_of_column, AnyRobot};
 use crate::stream::{CsvPiece, CsvRows, CsvStream};
 use crate::table::{Columns, Header};
-use crate::tips::Carried;
+use crate::tips::{Carried, CarriedColumns};
+use std::borrow::Cow;
 use std::io::Read;
 use std::path::Path;
 
@@ -25,7 +31,7 @@ use std::path::Path;
 /// let robot = AnyRobot::new(&[t]).unwrap();
 /// let csv = "label,s1_mm,theta1_deg\na,10,0\nb,20,5\nc,30,abc\n";
 /// let mut stream = JointStream::from_reader(csv.as_bytes(), "j.csv", &robot)?;
-/// let parser = stream.parser();
+/// let parser = stream.parser(false);
 /// let first = stream.next_piece(2).unwrap().parse(&parser)?;
 /// assert_eq!((first.len(), first.joints(1)), (2, &[20.0, 5.0][..]));
 /// let err = stream.next_piece(2).unwrap().parse(&parser).unwrap_err();
@@ -34,13 +40,19 @@ use std::path::Path;
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub struct JointStream<'r> {
-    csv: CsvStream<Box<dyn Read + Send + 'r>>,
+    source: Source<'r>,
+    file: String,
     header: Header,
     robot: AnyRobot,
     /// rows handed out so far
     rows: usize,
-    /// an estimate of the rows in the file, from its size
+    /// the rows in the file (Parquet), or an estimate from its size (CSV)
     estimate: Option<usize>,
+}
+
+enum Source<'r> {
+    Csv(CsvStream<Box<dyn Read + Send + 'r>>),
+    Parquet(Box<ParquetReader>),
 }
 
 /// What parsing a piece needs: the header, the file's name and the robot the joints
@@ -50,6 +62,8 @@ pub struct JointParser {
     header: Header,
     file: String,
     robot: AnyRobot,
+    /// the input columns go to a Parquet output: a CSV file's are made columns
+    columns_out: bool,
 }
 
 /// Rows of a joint file cut from the stream but not parsed yet.
@@ -62,48 +76,74 @@ pub struct JointPiece {
 #[derive(Debug)]
 enum PieceKind {
     Csv(CsvPiece),
+    Parquet(Vec<Column>),
     /// reading the file failed here
     Failed(Error),
 }
 
 /// Rows of a joint file, parsed and checked: every row has finite joints the robot can
-/// take; the raw fields are kept for carrying through.
+/// take; the input's columns are kept for carrying through.
 #[derive(Clone, Debug)]
 pub struct JointRows {
     first_row: usize,
     /// joint values per row (`2 n`)
     width: usize,
-    csv: CsvRows,
+    values: Vec<f64>,
+    kind: RowsKind,
+    /// every input column as an output column (for a Parquet output)
+    columns: Option<Vec<Column>>,
+}
+
+#[derive(Clone, Debug)]
+enum RowsKind {
+    Csv(CsvRows),
+    Parquet,
 }
 
 impl<'r> JointStream<'r> {
-    /// Starts reading CSV from `reader` (`file` names it in errors) and checks its
-    /// header against `robot` as [`JointTable`](crate::JointTable) does.
+    /// Starts reading `reader` (`file` names it in errors) and checks its header
+    /// against `robot` as [`JointTable`](crate::JointTable) does. CSV, unless the bytes
+    /// are a Parquet file's (then read whole into memory).
     pub fn from_reader(
         reader: impl Read + Send + 'r,
         file: &str,
         robot: &AnyRobot,
     ) -> Result<Self, Error> {
-        Self::start(Box::new(reader), file, robot, None)
+        let mut reader = reader;
+        let mut head = Vec::with_capacity(MAGIC.len());
+        (&mut reader)
+            .take(MAGIC.len() as u64)
+            .read_to_end(&mut head)
+            .map_err(|source| read_error(file, source))?;
+        if head == MAGIC {
+            let mut data = head;
+            reader
+                .read_to_end(&mut data)
+                .map_err(|source| read_error(file, source))?;
+            let parquet = ParquetReader::from_bytes(data, file)?;
+            return Self::parquet(parquet, robot);
+        }
+        let rest = std::io::Cursor::new(head).chain(reader);
+        Self::csv(Box::new(rest), file, robot, None)
     }
 
-    /// Opens and starts reading a joint file; errors name the path as given.
+    /// Opens and starts reading a joint file; errors name the path as given. Parquet
+    /// when its name ends in `.parquet` or its bytes start as a Parquet file's; else
+    /// CSV.
     pub fn from_path(path: &Path, robot: &AnyRobot) -> Result<JointStream<'static>, Error> {
         let file = path.display().to_string();
         let opened = std::fs::File::open(path).and_then(|f| Ok((f.metadata()?.len(), f)));
-        let (size, f) = opened.map_err(|source| {
-            Error::new(
-                Location::file(&file),
-                ErrorKind::Io {
-                    action: "read",
-                    source,
-                },
-            )
-        })?;
-        JointStream::start(Box::new(f), &file, robot, Some(size))
+        let (size, mut f) = opened.map_err(|source| read_error(&file, source))?;
+        let mut head = [0u8; 4];
+        let parquet_bytes = f.read_exact(&mut head).is_ok() && head == MAGIC;
+        if is_parquet(path) || parquet_bytes {
+            return JointStream::parquet(ParquetReader::open(path)?, robot);
+        }
+        let f = std::fs::File::open(path).map_err(|source| read_error(&file, source))?;
+        JointStream::csv(Box::new(f), &file, robot, Some(size))
     }
 
-    fn start(
+    fn csv(
         reader: Box<dyn Read + Send + 'r>,
         file: &str,
         robot: &AnyRobot,
@@ -118,7 +158,8 @@ impl<'r> JointStream<'r> {
         let header = csv.header(&columns, |name| column_beyond(name, robot.n_tubes()))?;
         let estimate = size.map(|s| csv.estimate_rows(s));
         Ok(JointStream {
-            csv,
+            source: Source::Csv(csv),
+            file: file.to_owned(),
             header,
             robot: *robot,
             rows: 0,
@@ -126,33 +167,82 @@ impl<'r> JointStream<'r> {
         })
     }
 
-    /// The file's name in errors.
-    pub fn file(&self) -> &str {
-        self.csv.file()
+    fn parquet(reader: ParquetReader, robot: &AnyRobot) -> Result<Self, Error> {
+        let file = reader.file().to_owned();
+        let required = joint_columns(robot.n_tubes());
+        let columns = Columns {
+            required: &required,
+            optional: None,
+        };
+        let header = Header::check(reader.names(), Location::file(&file), &columns, |name| {
+            column_beyond(name, robot.n_tubes())
+        })?;
+        numbers_only(&reader, &header, &file)?;
+        Ok(JointStream {
+            estimate: Some(reader.rows),
+            source: Source::Parquet(Box::new(reader)),
+            file,
+            header,
+            robot: *robot,
+            rows: 0,
+        })
     }
 
-    /// The header as found (untrimmed).
+    /// The file's name in errors.
+    pub fn file(&self) -> &str {
+        &self.file
+    }
+
+    /// The header as found (a CSV file's names untrimmed; a Parquet file's columns).
     pub fn header(&self) -> &[String] {
         &self.header.names
     }
 
-    /// The 1-based line of the header.
-    pub fn header_line(&self) -> usize {
-        self.header.line
+    /// Where the header is, for errors about it: its line, or the file (Parquet).
+    pub fn header_location(&self) -> Location {
+        self.header.location.clone()
     }
 
-    /// About how many rows the file has (from its size and its first lines), when it is
-    /// a file: for progress reports only.
+    /// True when the file is Parquet.
+    pub fn is_parquet(&self) -> bool {
+        matches!(self.source, Source::Parquet(_))
+    }
+
+    /// The input's columns as columns of a Parquet output: a Parquet file's with their
+    /// own types, a CSV file's as [`ColumnType::carried_csv`] makes them.
+    pub fn column_types(&self) -> Vec<ColumnType> {
+        match &self.source {
+            Source::Parquet(p) => p.columns.iter().map(|c| ColumnType(c.ty.clone())).collect(),
+            Source::Csv(_) => self
+                .header
+                .names
+                .iter()
+                .enumerate()
+                .map(|(i, name)| {
+                    if self.header.index.contains(&i) {
+                        ColumnType::double(name)
+                    } else {
+                        ColumnType::carried_csv(name)
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// The rows in the file (Parquet), or about how many from its size and its first
+    /// lines (a CSV file): for progress reports only.
     pub fn estimated_rows(&self) -> Option<usize> {
         self.estimate
     }
 
-    /// What the threads that parse the pieces need.
-    pub fn parser(&self) -> JointParser {
+    /// What the threads that parse the pieces need; with `columns_out` the rows keep
+    /// the input's columns for a Parquet output ([`JointRows::batch`]).
+    pub fn parser(&self, columns_out: bool) -> JointParser {
         JointParser {
             header: self.header.clone(),
-            file: self.file().to_owned(),
+            file: self.file.clone(),
             robot: self.robot,
+            columns_out,
         }
     }
 
@@ -160,15 +250,35 @@ impl<'r> JointStream<'r> {
     /// A failed read is a piece whose parse is the error.
     pub fn next_piece(&mut self, rows: usize) -> Option<JointPiece> {
         let first_row = self.rows;
-        let kind = match self.csv.next_piece(rows)? {
-            Ok(piece) => {
-                self.rows += piece.rows();
-                PieceKind::Csv(piece)
-            }
-            Err(e) => PieceKind::Failed(e),
+        let kind = match &mut self.source {
+            Source::Csv(csv) => match csv.next_piece(rows)? {
+                Ok(piece) => {
+                    self.rows += piece.rows();
+                    PieceKind::Csv(piece)
+                }
+                Err(e) => PieceKind::Failed(e),
+            },
+            Source::Parquet(p) => match p.next_rows(rows) {
+                Ok(columns) if columns.first().is_none_or(|c| c.len() == 0) => return None,
+                Ok(columns) => {
+                    self.rows += columns[0].len();
+                    PieceKind::Parquet(columns)
+                }
+                Err(e) => PieceKind::Failed(e),
+            },
         };
         Some(JointPiece { first_row, kind })
     }
+}
+
+fn read_error(file: &str, source: std::io::Error) -> Error {
+    Error::new(
+        Location::file(file),
+        ErrorKind::Io {
+            action: "read",
+            source,
+        },
+    )
 }
 
 /// Refuses a joint-like column for a tube beyond the robot's `n` (`s3_mm` for two tubes).
@@ -182,30 +292,22 @@ pub(crate) fn column_beyond(name: &str, n: usize) -> Result<(), ErrorKind> {
     }
 }
 
-/// The tube number of a joint-like column name (`s3_mm`, `theta3_deg`).
-pub(crate) fn tube_of_column(name: &str) -> Option<usize> {
-    let digits = name
-        .strip_prefix('s')
-        .and_then(|r| r.strip_suffix("_mm"))
-        .or_else(|| {
-            name.strip_prefix("theta")
-                .and_then(|r| r.strip_suffix("_deg"))
-        })?;
-    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    digits.parse().ok()
-}
-
-/// The check of every joint row: the robot can take the joints.
+/// The check of every joint row: the robot can take the joints (errors at the row's
+/// line, or at its row for a file without lines).
 pub(crate) fn joint_check<'a>(
     robot: &'a AnyRobot,
     file: &'a str,
+    rows: bool,
 ) -> impl Fn(&[f64], usize) -> Result<(), Error> + Sync + 'a {
-    move |joints: &[f64], line: usize| {
-        robot
-            .validate_joints(joints)
-            .map_err(|e| Error::new(Location::line(file, line), ErrorKind::Joint(e)))
+    move |joints: &[f64], at: usize| {
+        robot.validate_joints(joints).map_err(|e| {
+            let at = if rows {
+                Location::row(file, at)
+            } else {
+                Location::line(file, at)
+            };
+            Error::new(at, ErrorKind::Joint(e))
+        })
     }
 }
 
@@ -224,18 +326,32 @@ impl JointPiece {
 
     /// Parses and checks the piece's rows; the error is the piece's first.
     pub fn parse(self, parser: &JointParser) -> Result<JointRows, Error> {
-        match self.kind {
-            PieceKind::Failed(e) => Err(e),
+        let (file, header) = (&parser.file, &parser.header);
+        let (kind, values, columns) = match self.kind {
+            PieceKind::Failed(e) => return Err(e),
             PieceKind::Csv(piece) => {
-                let check = joint_check(&parser.robot, &parser.file);
-                let csv = piece.parse(&parser.header, &parser.file, &check)?;
-                Ok(JointRows {
-                    first_row: self.first_row,
-                    width: parser.header.width(),
-                    csv,
-                })
+                let check = joint_check(&parser.robot, file, false);
+                let mut csv = piece.parse(header, file, &check)?;
+                let columns = match parser.columns_out {
+                    true => Some(csv.columns(header, file)?),
+                    false => None,
+                };
+                let values = std::mem::take(&mut csv.values);
+                (RowsKind::Csv(csv), values, columns)
             }
-        }
+            PieceKind::Parquet(columns) => {
+                let check = joint_check(&parser.robot, file, true);
+                let values = parquet_values(&columns, header, file, self.first_row, &check)?;
+                (RowsKind::Parquet, values, Some(columns))
+            }
+        };
+        Ok(JointRows {
+            first_row: self.first_row,
+            width: header.width(),
+            values,
+            kind,
+            columns,
+        })
     }
 }
 
@@ -247,7 +363,10 @@ impl JointRows {
 
     /// Number of rows.
     pub fn len(&self) -> usize {
-        self.csv.len()
+        match &self.kind {
+            RowsKind::Csv(csv) => csv.len(),
+            RowsKind::Parquet => self.values.len() / self.width.max(1),
+        }
     }
 
     /// True when there are no rows.
@@ -255,41 +374,89 @@ impl JointRows {
         self.len() == 0
     }
 
-    /// The 1-based file line where row `r` (0-based, of these rows) starts.
+    /// Where row `r` (0-based, of these rows) is, for messages: its 1-based line in a
+    /// CSV file, or its 1-based row in a Parquet file ([`JointRows::is_rows`]).
     pub fn line(&self, r: usize) -> usize {
-        self.csv.line(r)
+        match &self.kind {
+            RowsKind::Csv(csv) => csv.line(r),
+            RowsKind::Parquet => self.first_row + r + 1,
+        }
+    }
+
+    /// True when [`line`](Self::line) gives rows of a Parquet file, not lines.
+    pub fn is_rows(&self) -> bool {
+        matches!(self.kind, RowsKind::Parquet)
+    }
+
+    /// The location of row `r` in `file`, for errors.
+    pub fn location(&self, file: &str, r: usize) -> Location {
+        if self.is_rows() {
+            Location::row(file, self.line(r))
+        } else {
+            Location::line(file, self.line(r))
+        }
     }
 
     /// The joints of row `r` in file order (`s1_mm, theta1_deg, ...`).
     pub fn joints(&self, r: usize) -> &[f64] {
         let w = self.width;
-        &self.csv.values[r * w..(r + 1) * w]
+        &self.values[r * w..(r + 1) * w]
     }
 
     /// All rows' joints, row after row.
     pub fn all_joints(&self) -> &[f64] {
-        &self.csv.values
+        &self.values
     }
 
-    /// The raw fields of row `r`, all columns in header order.
-    pub fn fields(&self, r: usize) -> impl Iterator<Item = &str> {
-        self.csv.fields(r)
+    /// The field of row `r` in column `column` (an index into the header), as text: a
+    /// CSV file's raw field, a Parquet cell written as CSV writes it.
+    pub fn field(&self, r: usize, column: usize) -> Cow<'_, str> {
+        match (&self.kind, &self.columns) {
+            (RowsKind::Csv(csv), _) => Cow::Borrowed(csv.fields(r).nth(column).unwrap_or_default()),
+            (RowsKind::Parquet, Some(columns)) => columns[column].text(r),
+            (RowsKind::Parquet, None) => Cow::Borrowed(""),
+        }
     }
 
-    /// The raw field of row `r` in column `column` (an index into the header).
-    pub fn field(&self, r: usize, column: usize) -> &str {
-        self.csv.fields(r).nth(column).unwrap_or_default()
-    }
-
-    /// Row `r`'s input columns for an output row ([`write_tip_row_for`]): its line as
-    /// it was when it had no quotes, else its fields.
+    /// Row `r`'s input columns for a CSV output row ([`write_tip_row_for`]): its line as
+    /// it was when it had no quotes, else its fields; a Parquet file's cells as text.
     ///
     /// [`write_tip_row_for`]: crate::write_tip_row_for
     pub fn carried(&self, r: usize) -> Carried<'_, impl Iterator<Item = &str> + '_> {
-        match self.csv.plain_line(r) {
-            Some(line) => Carried::Line(line),
-            None => Carried::Fields(self.csv.fields(r)),
+        match (&self.kind, &self.columns) {
+            (RowsKind::Csv(csv), _) => match csv.plain_line(r) {
+                Some(line) => Carried::Line(line),
+                None => Carried::Fields(csv.fields(r)),
+            },
+            (RowsKind::Parquet, columns) => Carried::Columns(CarriedColumns {
+                columns: columns.as_deref().unwrap_or_default(),
+                keep: None,
+                row: r,
+            }),
         }
+    }
+
+    /// The input's columns of the rows `rows` (indices of these rows, in order), for a
+    /// Parquet output: the columns of [`JointStream::column_types`]. Empty unless the
+    /// parser was made with `columns_out` (or the file is Parquet).
+    pub fn batch(&self, rows: &[usize]) -> Batch {
+        let Some(columns) = &self.columns else {
+            return Batch::default();
+        };
+        let all = rows.len() == self.len() && rows.iter().enumerate().all(|(k, &r)| k == r);
+        if all {
+            return Batch(columns.clone());
+        }
+        Batch(
+            columns
+                .iter()
+                .map(|c| {
+                    let mut out = c.empty();
+                    rows.iter().for_each(|&r| out.push_from(c, r));
+                    out
+                })
+                .collect(),
+        )
     }
 }
 

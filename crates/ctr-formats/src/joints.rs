@@ -50,7 +50,7 @@ impl JointTable {
             optional: None,
         };
         let header_check = |name: &str| column_beyond(name, n);
-        let row_check = joint_check(robot, file);
+        let row_check = joint_check(robot, file, false);
         let table = Table::read(data, file, &columns, header_check, row_check, threads)?;
         Ok(JointTable { table, n_tubes: n })
     }
@@ -64,7 +64,7 @@ impl JointTable {
 
     /// The 1-based line of the header.
     pub fn header_line(&self) -> usize {
-        self.table.header.line
+        self.table.header.line()
     }
 
     /// The index of the column named `name` (header names trimmed), if present.

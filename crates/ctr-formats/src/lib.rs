@@ -164,6 +164,7 @@
 //! point at the offending value.
 
 mod actuation;
+mod columnar;
 mod csvout;
 mod effects;
 mod empirical;
@@ -183,6 +184,9 @@ mod targets;
 mod tips;
 mod toml_doc;
 
+pub use columnar::{
+    is_number_column, is_parquet, Batch, ColumnType, ParquetOutput, PARQUET_EXTENSION,
+};
 pub use error::{status_name, Error, ErrorKind, Location};
 pub use robot::{canonical_quaternion, joint_columns, joints_of, AnyRobot, FkResult};
 
@@ -205,10 +209,12 @@ pub use robot_file::{
     UnknownModelKind,
 };
 pub use targets::{
-    ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow, IkTarget, TargetTable,
-    ORIENTATION_COLUMNS, ORIENTATION_TOLERANCE_DEG, QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
+    ik_batch, ik_column_types, ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow,
+    IkTarget, TargetTable, ORIENTATION_COLUMNS, ORIENTATION_TOLERANCE_DEG,
+    QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
 };
 pub use tips::{
-    format_float, tip_header, tip_header_for, write_header, write_tip_row, write_tip_row_for,
-    Carried, TipColumns, TipWriter, MARGIN_COLUMN, STATUS_COLUMNS, TIP_COLUMNS,
+    format_float, tip_batch, tip_column_types, tip_header, tip_header_for, write_header,
+    write_tip_row, write_tip_row_for, Carried, CarriedColumns, TipColumns, TipWriter,
+    MARGIN_COLUMN, STATUS_COLUMNS, TIP_COLUMNS,
 };

@@ -216,117 +216,178 @@ pub fn stream<I, S, T>(
     threads: usize,
     in_flight: usize,
     stages: Option<&Stages>,
-    mut source: impl FnMut() -> Option<I> + Send,
+    source: impl FnMut() -> Option<I> + Send,
     init: impl Fn() -> S + Sync,
     work: impl Fn(&mut S, I) -> T + Sync,
-    mut consume: impl FnMut(T) -> bool,
+    consume: impl FnMut(T) -> bool,
 ) where
     I: Send,
     T: Send,
 {
-    let threads = resolve_threads(threads);
-    let in_flight = in_flight.max(1);
     let off = Stages::default();
     let stages = stages.unwrap_or(&off);
-    let on = stages.on();
+    let threads = resolve_threads(threads);
     if threads == 1 {
-        let mut state = init();
-        loop {
-            let Some(item) = timed(on, &stages.read_ns, &mut source) else {
+        stream_here(stages, source, init, work, consume);
+    } else {
+        let writer_cpu = stages.on().then(thread_cpu_ns).flatten();
+        let pipeline = Pipeline {
+            threads,
+            in_flight: in_flight.max(1),
+            stages,
+        };
+        pipeline.run(source, init, work, consume);
+        if let (Some(t0), Some(t1)) = (writer_cpu, thread_cpu_ns()) {
+            let used = t1.saturating_sub(t0);
+            stages.writer_cpu_ns.fetch_add(used, Ordering::Relaxed);
+        }
+    }
+}
+
+/// [`stream`] on the calling thread alone: each item read, worked on and consumed in
+/// turn.
+fn stream_here<I, S, T>(
+    stages: &Stages,
+    mut source: impl FnMut() -> Option<I>,
+    init: impl Fn() -> S,
+    work: impl Fn(&mut S, I) -> T,
+    mut consume: impl FnMut(T) -> bool,
+) {
+    let on = stages.on();
+    let mut state = init();
+    while let Some(item) = timed(on, &stages.read_ns, &mut source) {
+        let result = timed(on, &stages.work_ns, || work(&mut state, item));
+        if !timed(on, &stages.write_ns, || consume(result)) {
+            break;
+        }
+    }
+}
+
+/// [`stream`] on threads: a producer, `threads` workers, the calling thread consuming.
+struct Pipeline<'s> {
+    threads: usize,
+    in_flight: usize,
+    stages: &'s Stages,
+}
+
+impl Pipeline<'_> {
+    fn run<I: Send, S, T: Send>(
+        &self,
+        mut source: impl FnMut() -> Option<I> + Send,
+        init: impl Fn() -> S + Sync,
+        work: impl Fn(&mut S, I) -> T + Sync,
+        consume: impl FnMut(T) -> bool,
+    ) {
+        let stop = AtomicBool::new(false);
+        // the producer takes a token for every item; the consumer gives one back for
+        // every result it consumed: at most `in_flight` items in between
+        let (token_tx, token_rx) = mpsc::channel::<()>();
+        for _ in 0..self.in_flight {
+            let _ = token_tx.send(());
+        }
+        let (item_tx, item_rx) = mpsc::sync_channel::<(usize, I)>(self.in_flight);
+        let item_rx = Mutex::new(item_rx);
+        let (result_tx, result_rx) = mpsc::channel::<Option<(usize, T)>>();
+        std::thread::scope(|s| {
+            let (stop, init, work) = (&stop, &init, &work);
+            let mut handles = Vec::with_capacity(self.threads + 1);
+            handles.push(s.spawn(move || self.produce(&mut source, token_rx, item_tx, stop)));
+            for _ in 0..self.threads {
+                let (result_tx, item_rx) = (result_tx.clone(), &item_rx);
+                handles.push(s.spawn(move || self.work(item_rx, result_tx, stop, init, work)));
+            }
+            drop(result_tx);
+            self.consume_in_order(result_rx, token_tx, consume);
+            // unblock the producer and the workers and let them finish
+            stop.store(true, Ordering::Relaxed);
+            for h in handles {
+                if let Err(panic) = h.join() {
+                    std::panic::resume_unwind(panic);
+                }
+            }
+        });
+    }
+
+    /// The producer: an item from `source` for every token, numbered, until the source
+    /// ends or the consumer stops.
+    fn produce<I>(
+        &self,
+        source: &mut impl FnMut() -> Option<I>,
+        tokens: mpsc::Receiver<()>,
+        items: mpsc::SyncSender<(usize, I)>,
+        stop: &AtomicBool,
+    ) {
+        let stages = self.stages;
+        let _cpu = ThreadCpu::start(stages, &stages.reader_cpu_ns);
+        for k in 0.. {
+            if tokens.recv().is_err() || stop.load(Ordering::Relaxed) {
+                break;
+            }
+            let Some(item) = timed(stages.on(), &stages.read_ns, &mut *source) else {
                 break;
             };
-            let result = timed(on, &stages.work_ns, || work(&mut state, item));
-            if !timed(on, &stages.write_ns, || consume(result)) {
+            if items.send((k, item)).is_err() {
                 break;
             }
         }
-        return;
     }
-    let stop = AtomicBool::new(false);
-    // the producer takes a token for every item; the consumer gives one back for every
-    // result it consumed: at most `in_flight` items in between
-    let (token_tx, token_rx) = mpsc::channel::<()>();
-    for _ in 0..in_flight {
-        let _ = token_tx.send(());
-    }
-    let (item_tx, item_rx) = mpsc::sync_channel::<(usize, I)>(in_flight);
-    let item_rx = Mutex::new(item_rx);
-    let (result_tx, result_rx) = mpsc::channel::<Option<(usize, T)>>();
-    let writer_cpu = stages.on().then(thread_cpu_ns).flatten();
-    std::thread::scope(|s| {
-        let stop = &stop;
-        let mut handles = Vec::with_capacity(threads + 1);
-        handles.push(s.spawn(move || {
-            let cpu = ThreadCpu::start(stages, &stages.reader_cpu_ns);
-            for k in 0.. {
-                if token_rx.recv().is_err() || stop.load(Ordering::Relaxed) {
-                    break;
-                }
-                let Some(item) = timed(on, &stages.read_ns, &mut source) else {
-                    break;
-                };
-                if item_tx.send((k, item)).is_err() {
-                    break;
-                }
+
+    /// A worker: takes items until there are none, sends each result with its number.
+    fn work<I, S, T>(
+        &self,
+        items: &Mutex<mpsc::Receiver<(usize, I)>>,
+        results: mpsc::Sender<Option<(usize, T)>>,
+        stop: &AtomicBool,
+        init: impl Fn() -> S,
+        work: impl Fn(&mut S, I) -> T,
+    ) {
+        let stages = self.stages;
+        // a worker that panics says so, so that the consumer stops waiting
+        let guard = PanicNotice(&results);
+        let _cpu = ThreadCpu::start(stages, &stages.workers_cpu_ns);
+        let mut state = init();
+        loop {
+            let next = items.lock().map(|rx| rx.recv());
+            let Ok(Ok((k, item))) = next else { break };
+            if stop.load(Ordering::Relaxed) {
+                break;
             }
-            drop(cpu);
-        }));
-        for _ in 0..threads {
-            let (result_tx, item_rx, init, work) = (result_tx.clone(), &item_rx, &init, &work);
-            handles.push(s.spawn(move || {
-                // a worker that panics says so, so that the consumer stops waiting
-                let guard = PanicNotice(&result_tx);
-                let cpu = ThreadCpu::start(stages, &stages.workers_cpu_ns);
-                let mut state = init();
-                loop {
-                    let next = item_rx.lock().map(|rx| rx.recv());
-                    let Ok(Ok((k, item))) = next else { break };
-                    if stop.load(Ordering::Relaxed) {
-                        break;
-                    }
-                    let t = timed(on, &stages.work_ns, || work(&mut state, item));
-                    if guard.0.send(Some((k, t))).is_err() {
-                        break;
-                    }
-                }
-                drop(cpu);
-            }));
+            let t = timed(stages.on(), &stages.work_ns, || work(&mut state, item));
+            if guard.0.send(Some((k, t))).is_err() {
+                break;
+            }
         }
-        drop(result_tx);
+    }
+
+    /// The calling thread: the results in their items' order to `consume` (a token back
+    /// for each), until the workers are done, one panicked or `consume` says stop.
+    fn consume_in_order<T>(
+        &self,
+        results: mpsc::Receiver<Option<(usize, T)>>,
+        tokens: mpsc::Sender<()>,
+        mut consume: impl FnMut(T) -> bool,
+    ) {
+        let stages = self.stages;
         let mut pending = BTreeMap::new();
         let mut want = 0;
         loop {
             let t = match pending.remove(&want) {
                 Some(t) => t,
-                None => match result_rx.recv() {
+                None => match results.recv() {
                     Ok(Some((k, t))) => {
                         pending.insert(k, t);
                         continue;
                     }
-                    // all workers done, or one panicked (the scope raises it again)
+                    // all workers done, or one panicked (raised again by the caller)
                     Ok(None) | Err(_) => break,
                 },
             };
             want += 1;
-            if !timed(on, &stages.write_ns, || consume(t)) {
+            if !timed(stages.on(), &stages.write_ns, || consume(t)) {
                 break;
             }
-            let _ = token_tx.send(());
+            let _ = tokens.send(());
         }
-        // unblock the producer and the workers and let them finish
-        stop.store(true, Ordering::Relaxed);
-        drop(token_tx);
-        drop(result_rx);
-        for h in handles {
-            if let Err(panic) = h.join() {
-                std::panic::resume_unwind(panic);
-            }
-        }
-    });
-    if let (Some(t0), Some(t1)) = (writer_cpu, thread_cpu_ns()) {
-        stages
-            .writer_cpu_ns
-            .fetch_add(t1.saturating_sub(t0), Ordering::Relaxed);
     }
 }
 

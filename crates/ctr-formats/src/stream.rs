@@ -15,9 +15,10 @@
 //! of reading the whole file at once, and the first error of the file comes first when
 //! the pieces are taken in order.
 
+use crate::columnar::Column;
 use crate::error::{Error, ErrorKind, Location};
 use crate::records::{bom_len, count_newlines, Records};
-use crate::table::{parse_rows, Columns, Fields, Header, RowTexts};
+use crate::table::{csv_columns, parse_rows, Columns, Fields, Header, RowTexts};
 use std::io::Read;
 use std::ops::Range;
 use std::sync::Arc;
@@ -70,7 +71,7 @@ pub(crate) struct CsvRows {
     block: Arc<Vec<u8>>,
     end: usize,
     texts: RowTexts,
-    /// the numeric columns' values, row after row
+    /// the numeric columns' values, row after row (taken by whoever keeps them)
     pub values: Vec<f64>,
 }
 
@@ -90,11 +91,6 @@ impl<R: Read> CsvStream<R> {
             block_bytes: BLOCK_BYTES,
             next_quote: usize::MAX,
         }
-    }
-
-    /// The file's name in errors.
-    pub fn file(&self) -> &str {
-        &self.file
     }
 
     /// Moves the bytes not handed out yet to the front of a fresh block and reads more
@@ -451,6 +447,17 @@ impl CsvPiece {
 }
 
 impl CsvRows {
+    /// The rows as columns of a Parquet output (see [`csv_columns`]).
+    pub fn columns(&self, header: &Header, file: &str) -> Result<Vec<Column>, Error> {
+        csv_columns(
+            &self.texts,
+            &self.block[..self.end],
+            header,
+            &self.values,
+            file,
+        )
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.texts.len()

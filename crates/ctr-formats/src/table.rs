@@ -13,6 +13,7 @@
 //! [`Header::read`] checks the header, [`RowTexts::collect`] finds the records of the
 //! rows in order, [`parse_rows`] turns their cells into checked numbers.
 
+use crate::columnar::{is_number_column, Column, Values};
 use crate::error::{Error, ErrorKind, Location};
 use crate::records::{not_text_error, plain, Record, Records};
 use std::ops::Range;
@@ -104,12 +105,12 @@ pub(crate) use table_rows;
 pub(crate) struct Header {
     /// The names as found (untrimmed).
     pub names: Vec<String>,
-    /// 1-based line of the header.
-    pub line: usize,
+    /// Where the header is: its line (a CSV file's), or the file (a Parquet file's).
+    pub location: Location,
     /// The field index of each stored value (required, then the optional group).
-    index: Vec<usize>,
+    pub index: Vec<usize>,
     /// The column name of each stored value.
-    value_names: Vec<String>,
+    pub value_names: Vec<String>,
     /// Whether the optional group is present.
     pub has_optional: bool,
 }
@@ -142,18 +143,17 @@ impl Header {
                 .collect(),
             Record::Quoted(r) => r.iter().map(str::to_owned).collect(),
         };
-        Header::check(names, line, file, columns, header_check)
+        Header::check(names, Location::line(file, line), columns, header_check)
     }
 
-    /// Checks the header `names` found on `line` (see [`Header::read`]).
+    /// Checks the header `names` found at `location` (see [`Header::read`]).
     pub fn check(
         names: Vec<String>,
-        line: usize,
-        file: &str,
+        location: Location,
         columns: &Columns<'_>,
         header_check: impl Fn(&str) -> Result<(), ErrorKind>,
     ) -> Result<Header, Error> {
-        let at = |kind: ErrorKind| Error::new(Location::line(file, line), kind);
+        let at = |kind: ErrorKind| Error::new(location.clone(), kind);
         let trimmed: Vec<&str> = names.iter().map(|h| h.trim()).collect();
         for (i, name) in trimmed.iter().enumerate() {
             if trimmed[..i].contains(name) {
@@ -196,7 +196,7 @@ impl Header {
         }
         Ok(Header {
             names,
-            line,
+            location,
             index,
             value_names,
             has_optional,
@@ -206,6 +206,11 @@ impl Header {
     /// Numeric values per row.
     pub fn width(&self) -> usize {
         self.index.len()
+    }
+
+    /// The header's line (1 for a file without lines).
+    pub fn line(&self) -> usize {
+        self.location.line.unwrap_or(1)
     }
 }
 
@@ -355,6 +360,71 @@ pub(crate) fn parse_rows(
     Ok(())
 }
 
+/// The rows of `texts` (in `data`, with the numeric `values` read from them) as columns
+/// of a Parquet output, one per header column: the numeric columns read (doubles), the
+/// other columns the formats contract fills with numbers ([`is_number_column`]) as
+/// doubles (an empty cell a null, anything but a number refused with its line), every
+/// other column as text.
+pub(crate) fn csv_columns(
+    texts: &RowTexts,
+    data: &[u8],
+    header: &Header,
+    values: &[f64],
+    file: &str,
+) -> Result<Vec<Column>, Error> {
+    let n = texts.len();
+    let width = header.width();
+    let mut out: Vec<Column> = header
+        .names
+        .iter()
+        .enumerate()
+        .map(
+            |(i, name)| match header.index.iter().position(|&j| j == i) {
+                Some(k) => Column::doubles((0..n).map(|r| values[r * width + k]).collect()),
+                None if is_number_column(name.trim()) => Column {
+                    values: Values::F64(Vec::with_capacity(n)),
+                    valid: Some(Vec::with_capacity(n)),
+                },
+                None => Column {
+                    values: Values::Bytes(Vec::with_capacity(n)),
+                    valid: None,
+                },
+            },
+        )
+        .collect();
+    for r in 0..n {
+        for ((i, cell), column) in texts.fields(data, r).enumerate().zip(&mut out) {
+            match (&mut column.values, &mut column.valid) {
+                (Values::F64(v), Some(valid)) => {
+                    let number = number_cell(cell).map_err(|()| {
+                        Error::new(
+                            Location::line(file, texts.line(r)),
+                            ErrorKind::NotANumber {
+                                column: header.names[i].trim().to_owned(),
+                                found: cell.to_owned(),
+                            },
+                        )
+                    })?;
+                    v.push(number.unwrap_or_default());
+                    valid.push(number.is_some());
+                }
+                (Values::Bytes(v), _) => v.push(cell.into()),
+                _ => {}
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// A cell of a column of numbers: a number, `None` when empty, `Err` otherwise.
+fn number_cell(cell: &str) -> Result<Option<f64>, ()> {
+    let t = cell.trim();
+    if t.is_empty() {
+        return Ok(None);
+    }
+    t.parse().map(Some).map_err(|_| ())
+}
+
 /// The fields of one row.
 pub(crate) enum Fields<'a> {
     Plain(std::str::Split<'a, char>),
@@ -425,6 +495,17 @@ impl Table {
 
     pub fn fields(&self, row: usize) -> Fields<'_> {
         self.texts.fields(&self.data, row)
+    }
+
+    /// The rows as columns of a Parquet output (see [`csv_columns`]).
+    pub fn columns(&self) -> Result<Vec<Column>, Error> {
+        csv_columns(
+            &self.texts,
+            &self.data,
+            &self.header,
+            &self.values,
+            &self.file,
+        )
     }
 
     /// Row `row` as CSV text ready to write (see [`RowTexts::plain_line`]).

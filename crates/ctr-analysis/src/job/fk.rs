@@ -8,6 +8,7 @@ use crate::margin::Margins;
 use crate::model::{ModelSpec, RowModel, RowSolver};
 use ctr_core::{Model, SolveError, Status};
 use ctr_formats::parallel::{stream, Progress};
+use ctr_formats::{is_parquet, tip_batch, tip_column_types, Batch, ParquetOutput};
 use ctr_formats::{tip_header_for, write_header, write_tip_row_for, JointRows, RobotSpec};
 use ctr_formats::{Error, ErrorKind, Location};
 use ctr_formats::{FkResult, JointParser, JointPiece, JointStream, TipColumns};
@@ -71,6 +72,8 @@ pub struct FkSummary {
     pub failures: Vec<RowFailure>,
     /// Runs of rows below [`FkJob::warn_margin`], in input order.
     pub low_margin: Vec<LowMargin>,
+    /// The `line`s above are 1-based rows of a Parquet joint file, not lines.
+    pub lines_are_rows: bool,
 }
 
 /// Warm-start chunks of the batch in a piece of rows a worker takes at a time (the
@@ -112,18 +115,19 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
     let spec = read_robot(&job.robot)?;
     let fkm = fk_model(job, &spec, &robot_name)?;
     let mut joints = open_joints(&job.joints, &spec)?;
-    let parser = joints.parser();
-    let mut run = Run::new(job, joints.file());
+    let parquet_out = matches!(&job.output, Output::Path(p) if is_parquet(p));
+    let parser = joints.parser(parquet_out);
+    let mut run = Run::new(job, &joints);
     if fkm.needs_time() {
         let pieces = read_every_row(&mut joints, &parser, job.threads)?;
         let rows = time::Rows {
             pieces: &pieces,
             file: joints.file(),
             header: joints.header(),
-            header_line: joints.header_line(),
+            header_at: joints.header_location(),
         };
         let series = time::time_series(&rows, &fkm, &robot_name)?;
-        run.open(joints.header(), &job.output)?;
+        run.open(&joints, &job.output)?;
         let ctx = Context::new(job, &fkm, &parser, run.columns, Some(&series));
         progress.start(pieces.iter().map(JointRows::len).sum());
         run.streaming = Some(started.elapsed());
@@ -131,7 +135,7 @@ pub fn run_fk(job: &FkJob, progress: &dyn Progress) -> Result<FkSummary, Error> 
         run.solve(&ctx, || pieces.next().map(Item::Parsed), progress);
     } else {
         let ctx = Context::new(job, &fkm, &parser, run.columns, None);
-        if let Err(e) = run.open(joints.header(), &job.output) {
+        if let Err(e) = run.open(&joints, &job.output) {
             // reported only when every row reads well
             run.fail(&ctx, e);
         }
@@ -214,6 +218,8 @@ struct Context<'a> {
     fkm: &'a RowModel,
     parser: &'a JointParser,
     columns: TipColumns,
+    /// the output is Parquet: rows are gathered as columns
+    columns_out: bool,
     /// the rows' actual joints and times, for a model with time effects
     series: Option<&'a Series>,
     /// set once the job has failed: the workers only parse (the first bad row of the
@@ -230,7 +236,9 @@ struct Done<'m> {
 
 /// One piece's rows, formatted, and the solver they left.
 struct Chunk<'m> {
+    /// the rows as CSV text, or as columns (a Parquet output)
     text: Vec<u8>,
+    batch: Option<Batch>,
     written: usize,
     failures: Vec<RowFailure>,
     /// the first row (of the piece) the model could not solve
@@ -254,6 +262,7 @@ impl<'a> Context<'a> {
             fkm,
             parser,
             columns,
+            columns_out: matches!(&job.output, Output::Path(p) if is_parquet(p)),
             series,
             stop: AtomicBool::new(false),
         }
@@ -293,8 +302,13 @@ impl<'a> Context<'a> {
     /// with) or from a fresh start.
     fn solve(&self, rows: &JointRows, after: Option<&RowSolver<'a>>) -> Chunk<'a> {
         let job = self.job;
+        let text_bytes = match self.columns_out {
+            true => 0,
+            false => rows.len() * (self.parser.columns() * 12 + 180),
+        };
         let mut chunk = Chunk {
-            text: Vec::with_capacity(rows.len() * (self.parser.columns() * 12 + 180)),
+            text: Vec::with_capacity(text_bytes),
+            batch: None,
             written: 0,
             failures: Vec::new(),
             row_error: None,
@@ -308,12 +322,12 @@ impl<'a> Context<'a> {
             (false, Some(x)) => Margins::Below(x),
             (false, None) => Margins::Off,
         };
-        let skip = job.on_error == OnError::Skip;
-        let joints = self.joints(rows);
+        // a Parquet output's rows: which were kept, their tips
+        let mut kept: Vec<(usize, FkResult)> = Vec::new();
         let all = 0..rows.len();
         let end = solve_rows(
             self.fkm,
-            joints,
+            self.joints(rows),
             all,
             WARM_CHUNK_ROWS,
             margins,
@@ -326,42 +340,67 @@ impl<'a> Context<'a> {
                         return false;
                     }
                 };
-                if r == 0 {
-                    chunk.first = Some(fk);
-                }
-                // a row that did not converge has no margin to warn of
-                let converged = fk.status == Status::Converged;
-                chunk.margins.push(if converged {
-                    fk.stability_margin
-                } else {
-                    f64::NAN
-                });
-                if !converged {
-                    chunk.failures.push(RowFailure {
-                        line: rows.line(r),
-                        status: fk.status,
-                        residual_per_mm: fk.residual_per_mm,
-                    });
-                    if skip {
-                        return true;
+                if chunk.keeps(rows, r, &fk, job.on_error == OnError::Skip) {
+                    if self.columns_out {
+                        kept.push((r, fk));
+                    } else {
+                        write_tip_row_for(&mut chunk.text, rows.carried(r), &fk, self.columns);
                     }
+                    chunk.written += 1;
                 }
-                write_tip_row_for(&mut chunk.text, rows.carried(r), &fk, self.columns);
-                chunk.written += 1;
                 true
             },
         );
+        if self.columns_out {
+            let (kept, tips): (Vec<usize>, Vec<FkResult>) = kept.into_iter().unzip();
+            let mut batch = rows.batch(&kept);
+            batch.append(tip_batch(&tips, self.columns));
+            chunk.batch = Some(batch);
+        }
         chunk.end = Some(end);
         chunk
     }
+}
+
+impl Chunk<'_> {
+    /// Notes row `r` of `rows` solved as `fk` (its margin, whether it converged) and
+    /// says whether it is written (`skip`: rows that did not converge are not).
+    fn keeps(&mut self, rows: &JointRows, r: usize, fk: &FkResult, skip: bool) -> bool {
+        if r == 0 {
+            self.first = Some(*fk);
+        }
+        // a row that did not converge has no margin to warn of
+        let converged = fk.status == Status::Converged;
+        self.margins.push(if converged {
+            fk.stability_margin
+        } else {
+            f64::NAN
+        });
+        if !converged {
+            self.failures.push(RowFailure {
+                line: rows.line(r),
+                status: fk.status,
+                residual_per_mm: fk.residual_per_mm,
+            });
+        }
+        converged || !skip
+    }
+}
+
+/// Where the tips go: CSV (a file or standard output) or a Parquet file.
+enum Out {
+    Csv(Sink),
+    Parquet(Box<ParquetOutput>),
 }
 
 /// The job's state as the pieces come back in order.
 struct Run<'j> {
     job: &'j FkJob,
     file: String,
+    /// the joint file is Parquet: its rows have no lines
+    rows_not_lines: bool,
     columns: TipColumns,
-    sink: Option<Sink>,
+    sink: Option<Out>,
     /// rows read
     rows: usize,
     written: usize,
@@ -377,10 +416,11 @@ struct Run<'j> {
 }
 
 impl<'j> Run<'j> {
-    fn new(job: &'j FkJob, file: &str) -> Self {
+    fn new(job: &'j FkJob, joints: &JointStream<'_>) -> Self {
         Run {
             job,
-            file: file.to_owned(),
+            file: joints.file().to_owned(),
+            rows_not_lines: joints.is_parquet(),
             columns: TipColumns {
                 status: job.on_error == OnError::Mark,
                 margin: job.margin,
@@ -396,15 +436,30 @@ impl<'j> Run<'j> {
         }
     }
 
-    /// Checks the output header and opens the output, writing the header.
-    fn open(&mut self, input_header: &[String], output: &Output) -> Result<(), Error> {
-        let header = tip_header_for(input_header, self.columns)
-            .map_err(|kind| Error::new(Location::line(&self.file, 1), kind))?;
-        let mut sink = Sink::open(output)?;
-        let mut head = Vec::new();
-        write_header(&mut head, &header);
-        sink.write(&head)?;
-        self.sink = Some(sink);
+    /// Checks the output header and opens the output (writing a CSV file's header).
+    fn open(&mut self, joints: &JointStream<'_>, output: &Output) -> Result<(), Error> {
+        let header = tip_header_for(joints.header(), self.columns).map_err(|kind| {
+            let at = if joints.is_parquet() {
+                Location::file(&self.file)
+            } else {
+                Location::line(&self.file, 1)
+            };
+            Error::new(at, kind)
+        })?;
+        self.sink = Some(match output {
+            Output::Path(p) if is_parquet(p) => {
+                let mut types = joints.column_types();
+                types.extend(tip_column_types(self.columns));
+                Out::Parquet(Box::new(ParquetOutput::create(p, types)?))
+            }
+            _ => {
+                let mut sink = Sink::open(output)?;
+                let mut head = Vec::new();
+                write_header(&mut head, &header);
+                sink.write(&head)?;
+                Out::Csv(sink)
+            }
+        });
         Ok(())
     }
 
@@ -468,7 +523,7 @@ impl<'j> Run<'j> {
         }
         *last = chunk.end.take();
         if let Some((r, e)) = chunk.row_error {
-            let at = Location::line(&self.file, rows.line(r));
+            let at = rows.location(&self.file, r);
             self.fail(ctx, Error::new(at, ctx.fkm.row_error(e)));
             return true;
         }
@@ -481,7 +536,12 @@ impl<'j> Run<'j> {
             return true;
         }
         self.written += chunk.written;
-        if let Some(Err(e)) = self.sink.as_mut().map(|s| s.write(&chunk.text)) {
+        let written = match (self.sink.as_mut(), chunk.batch) {
+            (Some(Out::Csv(sink)), _) => sink.write(&chunk.text),
+            (Some(Out::Parquet(out)), Some(batch)) => out.write(batch),
+            _ => Ok(()),
+        };
+        if let Err(e) = written {
             self.fail(ctx, e);
         }
         true
@@ -502,8 +562,13 @@ impl<'j> Run<'j> {
         }
         if self.job.on_error == OnError::Fail {
             if let Some(first) = self.failures.first() {
+                let at = if self.rows_not_lines {
+                    Location::row(&self.file, first.line)
+                } else {
+                    Location::line(&self.file, first.line)
+                };
                 return Err(Error::new(
-                    Location::line(&self.file, first.line),
+                    at,
                     ErrorKind::SolverFailed {
                         status: first.status,
                         residual_per_mm: first.residual_per_mm,
@@ -513,8 +578,10 @@ impl<'j> Run<'j> {
                 ));
             }
         }
-        if let Some(sink) = self.sink {
-            sink.commit()?;
+        match self.sink {
+            Some(Out::Csv(sink)) => sink.commit()?,
+            Some(Out::Parquet(out)) => out.commit()?,
+            None => {}
         }
         Ok(FkSummary {
             joints_file: self.file,
@@ -522,6 +589,7 @@ impl<'j> Run<'j> {
             written: self.written,
             failures: self.failures,
             low_margin: self.low.finish(),
+            lines_are_rows: self.rows_not_lines,
         })
     }
 }

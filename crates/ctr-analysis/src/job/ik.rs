@@ -1,12 +1,14 @@
 //! The inverse-kinematics job ([`run_ik`]).
 
-use super::{read_input, read_robot, Input, Output, Sink};
+use super::{input_name, read_input, read_robot, Input, Output, Sink};
 use crate::batch::{batch_ik, IkBatchOptions};
 use crate::ik::{Ik, IkOptions, IkStatus};
 use ctr_core::Model;
 use ctr_formats::parallel::Progress;
+use ctr_formats::{ik_batch, ik_column_types, is_parquet, Batch, IkOutputColumns, ParquetOutput};
 use ctr_formats::{ik_output_columns, write_header, write_ik_row, IkRow, TargetTable};
 use ctr_formats::{Error, ErrorKind, Location};
+use std::ops::Range;
 
 /// An inverse-kinematics job: what `ctr-cli ik` runs.
 ///
@@ -60,30 +62,21 @@ pub struct IkSummary {
     pub rows: usize,
     /// Targets not reached, in input order.
     pub not_reached: Vec<IkRowFailure>,
+    /// The `line`s above are 1-based rows of a Parquet target file, not lines.
+    pub lines_are_rows: bool,
 }
 
 /// Runs an IK job; see [`IkJob`] for the order of work.
 pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> {
-    let (robot_name, spec) = {
-        let name = match &job.robot {
-            Input::Stdin => "<stdin>".to_owned(),
-            Input::Path(p) => p.display().to_string(),
-        };
-        (name, read_robot(&job.robot)?)
-    };
+    let robot_name = input_name(&job.robot);
+    let spec = read_robot(&job.robot)?;
     let model = job.model.unwrap_or(spec.model);
     let ik = Ik::for_spec(&spec, model, job.options)
         .map_err(|e| Error::new(Location::file(&robot_name), ErrorKind::Ik(Box::new(e))))?;
-    let table = {
-        let (name, bytes) = read_input(&job.targets)?;
-        TargetTable::from_bytes(bytes, &name, job.position_only, job.threads)?
-    };
+    let table = read_targets(job)?;
     let pose = table.has_orientation();
     let columns = ik_output_columns(table.header(), spec.robot.n_tubes(), pose);
-    let mut sink = Sink::open(&job.output)?;
-    let mut head = Vec::new();
-    write_header(&mut head, &columns.header);
-    sink.write(&head)?;
+    let mut out = IkOut::open(&job.output, &table, &columns, spec.robot.n_tubes(), pose)?;
     let targets = table.targets();
     let options = IkBatchOptions {
         threads: job.threads,
@@ -96,10 +89,10 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
     };
     let mut not_reached = Vec::new();
     let mut failed = None;
-    let mut text = Vec::new();
     batch_ik(&ik, &targets, &options, progress, |range, results| {
-        text.clear();
-        for (row, r) in range.zip(&results) {
+        let joints: Vec<Vec<f64>> = results.iter().map(|r| ik.to_file_units(&r.q)).collect();
+        let mut rows = Vec::with_capacity(results.len());
+        for ((row, r), joints) in range.clone().zip(&results).zip(&joints) {
             if r.status != IkStatus::Reached {
                 not_reached.push(IkRowFailure {
                     line: table.line(row),
@@ -108,25 +101,108 @@ pub fn run_ik(job: &IkJob, progress: &dyn Progress) -> Result<IkSummary, Error> 
                     orientation_residual_rad: r.orientation_residual_rad,
                 });
             }
-            let joints = ik.to_file_units(&r.q);
-            let out = IkRow {
-                joints: &joints,
+            rows.push(IkRow {
+                joints,
                 tip: &r.tip,
                 residual_mm: r.residual_mm,
                 orientation_residual_rad: r.orientation_residual_rad,
                 status: r.status.name(),
-            };
-            write_ik_row(&mut text, table.carried(row, &columns.carried), &out, pose);
+            });
         }
-        sink.write_or_stop(&text, &mut failed)
+        match out.write(&table, &columns.carried, range, &rows, pose) {
+            Ok(()) => true,
+            Err(e) => {
+                failed = Some(e);
+                false
+            }
+        }
     });
     if let Some(e) = failed {
         return Err(e);
     }
-    sink.commit()?;
+    out.commit()?;
     Ok(IkSummary {
         targets_file: table.file().to_owned(),
         rows: table.len(),
         not_reached,
+        lines_are_rows: table.is_rows(),
     })
+}
+
+/// Reads and checks every target: a Parquet file by name (`*.parquet`) or by its
+/// bytes, else CSV (parsed on the job's threads).
+fn read_targets(job: &IkJob) -> Result<TargetTable, Error> {
+    match &job.targets {
+        Input::Path(p) if is_parquet(p) => TargetTable::from_path(p, job.position_only),
+        input => {
+            let (name, bytes) = read_input(input)?;
+            TargetTable::from_bytes(bytes, &name, job.position_only, job.threads)
+        }
+    }
+}
+
+/// Where an IK job's rows go: CSV (a file or standard output) or a Parquet file, with
+/// the input's carried columns of every row.
+enum IkOut {
+    Csv(Sink),
+    Parquet(Box<ParquetOutput>, Batch),
+}
+
+impl IkOut {
+    /// Opens the output (a CSV file gets its header).
+    fn open(
+        output: &Output,
+        table: &TargetTable,
+        columns: &IkOutputColumns,
+        n_tubes: usize,
+        pose: bool,
+    ) -> Result<Self, Error> {
+        if let Output::Path(p) = output {
+            if is_parquet(p) {
+                let (mut types, carried) = table.carried_columns(&columns.carried)?;
+                types.extend(ik_column_types(n_tubes, pose));
+                return Ok(IkOut::Parquet(
+                    Box::new(ParquetOutput::create(p, types)?),
+                    carried,
+                ));
+            }
+        }
+        let mut sink = Sink::open(output)?;
+        let mut head = Vec::new();
+        write_header(&mut head, &columns.header);
+        sink.write(&head)?;
+        Ok(IkOut::Csv(sink))
+    }
+
+    /// Writes the rows `range` of the targets, solved as `rows`.
+    fn write(
+        &mut self,
+        table: &TargetTable,
+        keep: &[usize],
+        range: Range<usize>,
+        rows: &[IkRow<'_>],
+        pose: bool,
+    ) -> Result<(), Error> {
+        match self {
+            IkOut::Csv(sink) => {
+                let mut text = Vec::new();
+                for (row, r) in range.zip(rows) {
+                    write_ik_row(&mut text, table.carried(row, keep), r, pose);
+                }
+                sink.write(&text)
+            }
+            IkOut::Parquet(out, carried) => {
+                let mut batch = carried.rows(range);
+                batch.append(ik_batch(rows, pose));
+                out.write(batch)
+            }
+        }
+    }
+
+    fn commit(self) -> Result<(), Error> {
+        match self {
+            IkOut::Csv(sink) => sink.commit(),
+            IkOut::Parquet(out, _) => out.commit(),
+        }
+    }
 }

@@ -134,18 +134,6 @@ impl Sink {
         result.map_err(|source| self.error(source))
     }
 
-    /// Writes `bytes` for a batch's `consume`: `true` to go on, or `false` with the
-    /// error kept in `failed`.
-    fn write_or_stop(&mut self, bytes: &[u8], failed: &mut Option<Error>) -> bool {
-        match self.write(bytes) {
-            Ok(()) => true,
-            Err(e) => {
-                *failed = Some(e);
-                false
-            }
-        }
-    }
-
     fn error(&self, source: std::io::Error) -> Error {
         Error::new(
             Location::file(self.name()),

@@ -13,12 +13,12 @@ pub(super) struct Series {
 }
 
 /// What a time series is read from: the joint file's pieces in order, its name, header
-/// and header line.
+/// and where the header is.
 pub(super) struct Rows<'a> {
     pub pieces: &'a [JointRows],
     pub file: &'a str,
     pub header: &'a [String],
-    pub header_line: usize,
+    pub header_at: Location,
 }
 
 impl Rows<'_> {
@@ -45,7 +45,7 @@ pub(super) fn time_series(rows: &Rows<'_>, fkm: &RowModel, robot: &str) -> Resul
         if let Some(effect) = fkm.needs_times() {
             let message = missing_times(effect, fkm, robot);
             return Err(Error::new(
-                Location::line(file, rows.header_line),
+                rows.header_at.clone(),
                 ErrorKind::Effect { message },
             ));
         }
@@ -53,13 +53,14 @@ pub(super) fn time_series(rows: &Rows<'_>, fkm: &RowModel, robot: &str) -> Resul
     let run_col = rows.column("run");
     let mut times = Vec::new();
     let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
-    let mut label_of_run: &str = "";
+    let mut label_of_run = String::new();
     for (row, (piece, r)) in rows.each().enumerate() {
-        let label = run_col.map_or("", |c| piece.field(r, c).trim());
+        let cell = run_col.map(|c| piece.field(r, c));
+        let label = cell.as_deref().map_or("", str::trim);
         let same_run = row > 0 && label == label_of_run;
         if let Some(c) = t_col {
-            let at = |kind| Error::new(Location::line(file, piece.line(r)), kind);
-            let t = time_of(piece.field(r, c)).map_err(at)?;
+            let at = |kind| Error::new(piece.location(file, r), kind);
+            let t = time_of(&piece.field(r, c)).map_err(at)?;
             if let (true, Some(&prev)) = (same_run, times.last()) {
                 if t < prev {
                     return Err(at(time_goes_back(t, prev, run_col.map(|_| label), robot)));
@@ -71,7 +72,7 @@ pub(super) fn time_series(rows: &Rows<'_>, fkm: &RowModel, robot: &str) -> Resul
             Some(range) if same_run => range.end = row + 1,
             _ => {
                 runs.push(row..row + 1);
-                label_of_run = label;
+                label_of_run = label.to_owned();
             }
         }
     }
@@ -84,7 +85,7 @@ pub(super) fn time_series(rows: &Rows<'_>, fkm: &RowModel, robot: &str) -> Resul
         .actual_joints(&commanded, t_col.map(|_| &times[..]), &runs)
         .map_err(|e| {
             Error::new(
-                Location::line(file, rows.header_line),
+                rows.header_at.clone(),
                 ErrorKind::Effect {
                     message: e.to_string(),
                 },
