@@ -148,7 +148,13 @@ impl AtomicFile {
             .file_name()
             .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
         let (prefix, suffix) = if journal {
-            (format!("{name}."), ".partial")
+            // a Parquet output's journal holds CSV rows: named so
+            let partial = if crate::columnar::is_parquet(path) {
+                ".partial.csv"
+            } else {
+                ".partial"
+            };
+            (format!("{name}."), partial)
         } else {
             (format!(".{name}."), ".tmp")
         };
@@ -235,6 +241,22 @@ impl AtomicFile {
     /// The temporary file being written (renamed to the target on commit).
     pub fn temp_path(&self) -> &Path {
         self.tmp.get_ref().path()
+    }
+
+    /// Flushes the temporary file and deletes it (a journal too): for a journal whose
+    /// rows have been put in place by other means.
+    pub fn discard(mut self) -> Result<(), Error> {
+        let flushed = self.tmp.flush();
+        let removed = std::fs::remove_file(self.temp_path());
+        flushed.and(removed).map_err(|source| {
+            Error::new(
+                Location::file(&self.file),
+                ErrorKind::Io {
+                    action: "remove the journal of",
+                    source,
+                },
+            )
+        })
     }
 
     /// Flushes, syncs and renames the temporary file over the target (replacing it).

@@ -143,6 +143,46 @@ impl Column {
         self.values.len()
     }
 
+    /// No rows, of a column of type `ty` (doubles, maybe null, or text).
+    pub fn empty_of(ty: &Type) -> Column {
+        let optional = ty.get_basic_info().repetition() == Repetition::OPTIONAL;
+        let values = match ty.get_physical_type() {
+            Physical::DOUBLE => Values::F64(Vec::new()),
+            _ => Values::Bytes(Vec::new()),
+        };
+        Column {
+            values,
+            valid: optional.then(Vec::new),
+        }
+    }
+
+    /// Appends a CSV cell: a column of doubles takes a number (an empty cell as null;
+    /// anything else is `Err`), a column of text the cell as it is.
+    pub fn push_text(&mut self, cell: &str) -> Result<(), ()> {
+        match &mut self.values {
+            Values::F64(v) => {
+                let t = cell.trim();
+                let number = if t.is_empty() {
+                    None
+                } else {
+                    Some(t.parse::<f64>().map_err(|_| ())?)
+                };
+                v.push(number.unwrap_or_default());
+                match &mut self.valid {
+                    Some(valid) => valid.push(number.is_some()),
+                    None if number.is_none() => return Err(()),
+                    None => {}
+                }
+                Ok(())
+            }
+            Values::Bytes(v) => {
+                v.push(cell.into());
+                Ok(())
+            }
+            _ => Err(()),
+        }
+    }
+
     /// True when row `r` holds a value (not null).
     pub fn is_valid(&self, r: usize) -> bool {
         self.valid.as_ref().is_none_or(|v| v[r])

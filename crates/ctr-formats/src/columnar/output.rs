@@ -199,4 +199,54 @@ impl ParquetOutput {
     pub fn commit(self) -> Result<(), Error> {
         self.writer.finish()?.commit()
     }
+
+    /// As [`commit`](Self::commit), but fails when the path exists (see
+    /// [`AtomicFile::commit_new`]).
+    pub fn commit_new(self) -> Result<(), Error> {
+        self.writer.finish()?.commit_new()
+    }
+
+    /// Writes CSV text (`data`, a whole file named `file` in errors: a header and
+    /// rows, as the csv crate reads them) as a Parquet file at `path`: each column as
+    /// [`ColumnType::carried_csv`] makes it. Replaces an existing file only with
+    /// `replace`.
+    pub fn from_csv(data: &[u8], file: &str, path: &Path, replace: bool) -> Result<(), Error> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .from_reader(data);
+        let mut records = rdr.records();
+        let fail = |line: usize, e: csv::Error| {
+            let message = format!("{e}");
+            Error::new(Location::line(file, line), ErrorKind::Csv { message })
+        };
+        let header = match records.next() {
+            Some(r) => r.map_err(|e| fail(1, e))?,
+            None => csv::StringRecord::new(),
+        };
+        let types: Vec<ColumnType> = header.iter().map(ColumnType::carried_csv).collect();
+        let mut columns: Vec<Column> = types.iter().map(|t| Column::empty_of(&t.0)).collect();
+        for (k, record) in records.enumerate() {
+            let record = record.map_err(|e| fail(k + 2, e))?;
+            for (i, column) in columns.iter_mut().enumerate() {
+                let cell = record.get(i).unwrap_or_default();
+                column.push_text(cell).map_err(|()| {
+                    Error::new(
+                        Location::line(file, k + 2),
+                        ErrorKind::NotANumber {
+                            column: header[i].trim().to_owned(),
+                            found: cell.to_owned(),
+                        },
+                    )
+                })?;
+            }
+        }
+        let mut out = ParquetOutput::create(path, types)?;
+        out.write(Batch(columns))?;
+        if replace {
+            out.commit()
+        } else {
+            out.commit_new()
+        }
+    }
 }
