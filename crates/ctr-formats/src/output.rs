@@ -40,6 +40,9 @@ pub struct AtomicFile {
     synced: u64,
     /// the sync behind the writer in flight
     syncing: Option<std::thread::JoinHandle<io::Result<()>>>,
+    /// bytes written (buffered or through), and the length reserved ahead of them
+    written: u64,
+    reserved: u64,
 }
 
 /// The directory an output file at `path` goes into, after checking that it exists and
@@ -184,6 +187,8 @@ impl AtomicFile {
             through: 0,
             synced: 0,
             syncing: None,
+            written: 0,
+            reserved: 0,
         })
     }
 
@@ -209,12 +214,42 @@ impl AtomicFile {
         self.tmp.flush()?;
         self.tmp.get_mut().write_all(bytes)?;
         self.through += bytes.len() as u64;
+        self.written += bytes.len() as u64;
         if self.through - self.synced >= SYNC_BEHIND_BYTES && self.sync_done()? {
             let file = self.tmp.get_ref().as_file().try_clone()?;
             self.synced = self.through;
             self.syncing = Some(std::thread::spawn(move || file.sync_data()));
         }
         Ok(())
+    }
+
+    /// Reserves the disk blocks of a file of `bytes` ahead of the writes (Linux:
+    /// `fallocate`; best effort, nothing elsewhere): the file system then has no block
+    /// to find for each page written. The file is cut back to what was written when
+    /// it is committed.
+    ///
+    /// ```
+    /// use std::io::Write;
+    /// let dir = tempfile::tempdir()?;
+    /// let path = dir.path().join("big.csv");
+    /// let mut out = ctr_formats::AtomicFile::create(&path)?;
+    /// out.reserve(1 << 20);
+    /// out.write_through(b"x_mm\n1\n")?;
+    /// out.commit()?;
+    /// assert_eq!(std::fs::read(&path)?, b"x_mm\n1\n");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn reserve(&mut self, bytes: u64) {
+        #[cfg(target_os = "linux")]
+        {
+            use rustix::fs::{fallocate, FallocateFlags};
+            let file = self.tmp.get_ref().as_file();
+            if bytes > self.reserved && fallocate(file, FallocateFlags::empty(), 0, bytes).is_ok() {
+                self.reserved = bytes;
+            }
+        }
+        #[cfg(not(target_os = "linux"))]
+        let _ = bytes;
     }
 
     /// True when no sync behind the writer is in flight (the last one's error, if it
@@ -274,6 +309,11 @@ impl AtomicFile {
     fn place(mut self, replace: bool) -> Result<(), Error> {
         let synced = self.wait_for_sync();
         let file = self.file;
+        let written = self.written;
+        let cut = |f: &std::fs::File| match self.reserved > written {
+            true => f.set_len(written),
+            false => Ok(()),
+        };
         let fail =
             |action, source| Error::new(Location::file(&file), ErrorKind::Io { action, source });
         let tmp = self
@@ -281,6 +321,7 @@ impl AtomicFile {
             .into_inner()
             .map_err(|e| fail("write", e.into_error()))?;
         synced
+            .and_then(|()| cut(tmp.as_file()))
             .and_then(|()| tmp.as_file().sync_all())
             .map_err(|e| fail("write", e))?;
         let placed = if replace {
@@ -334,7 +375,9 @@ impl std::fmt::Debug for AtomicFile {
 
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.tmp.write(buf)
+        let n = self.tmp.write(buf)?;
+        self.written += n as u64;
+        Ok(n)
     }
     fn flush(&mut self) -> io::Result<()> {
         self.tmp.flush()

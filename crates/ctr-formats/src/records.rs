@@ -193,11 +193,11 @@ pub(crate) fn not_text(data: &[u8]) -> Option<&'static str> {
         .map(|(_, what)| *what)
 }
 
-/// The error for a file [`not_text`] recognises.
+/// The error for a file [`not_text`] recognises (at line 1, where its magic number is).
 pub(crate) fn not_text_error(file: &str, data: &[u8]) -> Option<Error> {
     not_text(data).map(|what| {
         Error::new(
-            Location::file(file),
+            Location::line(file, 1),
             ErrorKind::Csv {
                 message: format!("this is {what}"),
             },
@@ -276,7 +276,7 @@ mod tests {
         assert_eq!(not_text(b"\xEF\xBB\xBFs1_mm\n"), None);
         let e = not_text_error("j.csv", b"PK\x03\x04").unwrap();
         assert!(
-            e.to_string().starts_with("j.csv: this is a zip archive"),
+            e.to_string().starts_with("j.csv:1: this is a zip archive"),
             "{e}"
         );
     }

@@ -78,10 +78,14 @@ pub struct FkSummary {
 
 /// Warm-start chunks of the batch in a piece of rows a worker takes at a time (the
 /// output does not depend on it: see [`run_fk`]).
-const PIECE_CHUNKS: usize = 16;
+const PIECE_CHUNKS: usize = 64;
 
 /// Rows in a piece.
 const PIECE_ROWS: usize = WARM_CHUNK_ROWS * PIECE_CHUNKS;
+
+/// The part of its estimated size a CSV output's reserved size has in excess
+/// (1 / this), for an estimate a little short.
+const RESERVE_MARGIN: usize = 20;
 
 /// Pieces between the reader and the writer at once, per worker thread: what bounds
 /// the memory of a job (with [`PIECE_ROWS`] and the reader's block).
@@ -399,6 +403,9 @@ struct Run<'j> {
     file: String,
     /// the joint file is Parquet: its rows have no lines
     rows_not_lines: bool,
+    /// about how many rows the joint file has, until a CSV output's size is reserved
+    /// from it
+    estimate: Option<usize>,
     columns: TipColumns,
     sink: Option<Out>,
     /// rows read
@@ -421,6 +428,7 @@ impl<'j> Run<'j> {
             job,
             file: joints.file().to_owned(),
             rows_not_lines: joints.is_parquet(),
+            estimate: joints.estimated_rows(),
             columns: TipColumns {
                 status: job.on_error == OnError::Mark,
                 margin: job.margin,
@@ -537,7 +545,14 @@ impl<'j> Run<'j> {
         }
         self.written += chunk.written;
         let written = match (self.sink.as_mut(), chunk.batch) {
-            (Some(Out::Csv(sink)), _) => sink.write(&chunk.text),
+            (Some(Out::Csv(sink)), _) => {
+                // the file's size, reserved from its first rows and the rows expected
+                if let (Some(rows), true) = (self.estimate.take(), chunk.written > 0) {
+                    let per_row = chunk.text.len() / chunk.written;
+                    sink.reserve((rows * per_row + rows * per_row / RESERVE_MARGIN) as u64);
+                }
+                sink.write(&chunk.text)
+            }
             (Some(Out::Parquet(out)), Some(batch)) => out.write(batch),
             _ => Ok(()),
         };

@@ -134,6 +134,13 @@ impl Sink {
         result.map_err(|source| self.error(source))
     }
 
+    /// Reserves `bytes` of a file ahead of the writes ([`AtomicFile::reserve`]).
+    fn reserve(&mut self, bytes: u64) {
+        if let Sink::File(f, _) = self {
+            f.reserve(bytes);
+        }
+    }
+
     fn error(&self, source: std::io::Error) -> Error {
         Error::new(
             Location::file(self.name()),
