@@ -79,7 +79,8 @@ def cli_fk(cli, tmp_path, robot_path, robot, q, *extra):
 
 def cli_error(cli: Path, case: Path) -> str:
     """The CLI's one-line message for a bad-input case, without `error: `."""
-    args = ["fk", "--robot", "robot.toml", "--joints", "joints.csv", "-o", "out.csv"]
+    joints = "joints.parquet" if (case / "joints.parquet").exists() else "joints.csv"
+    args = ["fk", "--robot", "robot.toml", "--joints", joints, "-o", "out.csv"]
     p = run_cli(cli, *args, cwd=case)
     assert p.returncode == 2
     line = p.stderr.strip()
@@ -210,7 +211,8 @@ def test_bad_input_corpus(cli, case, monkeypatch):
         return
     robot = ctr_py.Robot.from_toml("robot.toml")
     if not JOINT_VALUE_ERROR.match(message):
-        assert message.startswith("joints.csv")  # a CSV format error
+        # a CSV or Parquet format error, or a Parquet file's row
+        assert message.startswith(("joints.csv", "joints.parquet")), message
         return
     with open("joints.csv", newline="") as f:
         rows = list(csv.DictReader(f))

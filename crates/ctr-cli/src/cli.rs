@@ -17,6 +17,13 @@ Output: every input column as read, then x_mm,y_mm,z_mm (tip position in W, mm) 
 qw,qx,qy,qz (tip orientation, unit quaternion with qw >= 0); with --on-error mark also
 status,residual_per_mm. Floats are written in shortest round-trip form.
 
+Parquet: a joint file or output named *.parquet is Parquet, with the CSV's column names
+(joints DOUBLE, FLOAT, INT32 or INT64; tips DOUBLE; the input's other columns carried
+with their own types, a CSV file's numbers of the contract as DOUBLE, the rest as text).
+Errors in a Parquet file name its row (1-based) and column. The joint file is read and
+the output written a piece at a time: memory does not grow with the rows (standard
+output excepted: it is written at the end).
+
 Model: the robot file's [model] kind (or --model) with every table of [model.effects]:
 joint offsets, scaled stiffness and precurvature, clearance kinks or gravity, and the
 tip as measured (sensor offset, registration: then x_mm,...,qz are in the measuring
@@ -206,7 +213,8 @@ row: send the goals; without t_s wait until the motors are still, with t_s wait 
 the next row's time (the last row: until still); read the positions back; append the
 row to the recording.
 
-Recording (CSV, one flushed line per completed row):
+Recording (CSV, one flushed line per completed row; a recording named *.parquet is
+written as Parquet from that journal when the run ends):
   t_s,run,s1_mm,theta1_deg,...,s1_read_mm,theta1_read_deg,...,x_mm,y_mm,z_mm
 t_s: seconds since the first goal was sent, taken when the positions were read; the
 joint columns: the goals in force then; the _read_ columns: the positions read back;
@@ -409,12 +417,13 @@ pub struct FkArgs {
     #[arg(long, value_name = "ROBOT.toml")]
     pub robot: PathBuf,
 
-    /// Joint file (CSV with s1_mm,theta1_deg,... columns); `-` reads standard input.
+    /// Joint file (CSV with s1_mm,theta1_deg,... columns, or Parquet: *.parquet); `-`
+    /// reads standard input.
     #[arg(long, value_name = "JOINTS.csv")]
     pub joints: PathBuf,
 
-    /// Tip file to write (replaced only if the whole run succeeds); `-` or absent writes
-    /// standard output.
+    /// Tip file to write, CSV or Parquet (*.parquet) (replaced only if the whole run
+    /// succeeds); `-` or absent writes CSV on standard output.
     #[arg(short, long, value_name = "TIPS.csv")]
     pub output: Option<PathBuf>,
 
@@ -442,6 +451,11 @@ pub struct FkArgs {
     /// snap); 0 turns the warnings off.
     #[arg(long, value_name = "X", default_value_t = DEFAULT_WARN_MARGIN)]
     pub warn_margin: f64,
+
+    /// Print where the time went to stderr: setting up, reading the joint file, the
+    /// workers (parsing, solving, formatting), writing, finishing; wall and CPU times.
+    #[arg(long)]
+    pub profile: bool,
 }
 
 /// Options of `ctr-cli ik`.
@@ -451,13 +465,13 @@ pub struct IkArgs {
     #[arg(long, value_name = "ROBOT.toml")]
     pub robot: PathBuf,
 
-    /// Target file (CSV with x_mm,y_mm,z_mm and optionally qw,qx,qy,qz columns); `-`
-    /// reads standard input.
+    /// Target file (CSV with x_mm,y_mm,z_mm and optionally qw,qx,qy,qz columns, or
+    /// Parquet: *.parquet); `-` reads standard input.
     #[arg(long, value_name = "TARGETS.csv")]
     pub targets: PathBuf,
 
-    /// Joint file to write (replaced only if the whole run succeeds); `-` or absent
-    /// writes standard output.
+    /// Joint file to write, CSV or Parquet (*.parquet) (replaced only if the whole run
+    /// succeeds); `-` or absent writes CSV on standard output.
     #[arg(short, long, value_name = "JOINTS.csv")]
     pub output: Option<PathBuf>,
 

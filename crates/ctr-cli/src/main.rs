@@ -18,7 +18,8 @@ mod progress;
 use clap::Parser;
 use cli::{Cli, Command, FkArgs, IkArgs, OnErrorArg};
 use ctr_analysis::ik::IkOptions;
-use ctr_analysis::job::{run_fk, run_ik, FkJob, IkJob, Input, LowMargin, OnError, Output};
+use ctr_analysis::job::Output;
+use ctr_analysis::job::{run_fk, run_ik, FkJob, FkSummary, IkJob, Input, LowMargin, OnError};
 use ctr_core::Model;
 use ctr_formats::status_name;
 use std::path::{Path, PathBuf};
@@ -153,9 +154,8 @@ fn ik(args: IkArgs) -> Result<(), Failure> {
             format!(", orientation_residual_deg = {}", a.to_degrees())
         });
         eprintln!(
-            "warning: {}:{}: target {}: residual_mm = {}{angle}",
-            summary.targets_file,
-            f.line,
+            "warning: {}: target {}: residual_mm = {}{angle}",
+            located(&summary.targets_file, f.line, summary.lines_are_rows),
             f.status.name(),
             f.residual_mm,
         );
@@ -172,9 +172,8 @@ fn ik(args: IkArgs) -> Result<(), Failure> {
     if args.fail_unreachable && missed > 0 {
         let first = &summary.not_reached[0];
         return Err(Failure::Solver(format!(
-            "{}:{}: {missed} of {} target{} not reached (first: {}, residual_mm = {}); the output was written",
-            summary.targets_file,
-            first.line,
+            "{}: {missed} of {} target{} not reached (first: {}, residual_mm = {}); the output was written",
+            located(&summary.targets_file, first.line, summary.lines_are_rows),
             summary.rows,
             if summary.rows == 1 { "" } else { "s" },
             first.status.name(),
@@ -200,7 +199,9 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
         margin: args.margin,
         warn_margin: (args.warn_margin > 0.0).then_some(args.warn_margin),
     };
-    let summary = run_fk(&job, &progress::Bar::default()).map_err(|e| {
+    let started = std::time::Instant::now();
+    let bar = progress::Bar::profiled(args.profile);
+    let summary = run_fk(&job, &bar).map_err(|e| {
         if e.is_solver_failure() {
             Failure::Solver(format!(
                 "{e} (--on-error skip or mark writes the other rows)"
@@ -209,6 +210,10 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
             Failure::Input(e.to_string())
         }
     })?;
+    if args.profile {
+        let threads = ctr_formats::parallel::resolve_threads(job.threads);
+        eprint!("{}", bar.profile(summary.rows, threads, started.elapsed()));
+    }
     let what = if job.on_error == OnError::Skip {
         "skipped"
     } else {
@@ -216,9 +221,8 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
     };
     for f in summary.failures.iter().take(MAX_WARNINGS) {
         eprintln!(
-            "warning: {}:{}: {what}: solve ended with status {} (residual_per_mm = {})",
-            summary.joints_file,
-            f.line,
+            "warning: {}: {what}: solve ended with status {} (residual_per_mm = {})",
+            place(&summary, f.line, f.line),
             status_name(f.status),
             f.residual_per_mm
         );
@@ -235,7 +239,7 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
     for run in summary.low_margin.iter().take(MAX_WARNINGS) {
         eprintln!(
             "warning: {}",
-            low_margin_words(&summary.joints_file, run, args.warn_margin)
+            low_margin_words(&summary, run, args.warn_margin)
         );
     }
     if summary.low_margin.len() > MAX_WARNINGS {
@@ -249,13 +253,40 @@ fn fk(args: FkArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// One warning for a run of rows below the warning margin.
-fn low_margin_words(file: &str, run: &LowMargin, below: f64) -> String {
-    let (first, last) = run.lines;
-    let lines = if first == last {
-        format!("{file}:{first}")
+/// Where line `line` of `file` is (`file:line`), or row `line` of a Parquet file
+/// (`file: row line`).
+fn located(file: &str, line: usize, rows: bool) -> String {
+    if rows {
+        format!("{file}: row {line}")
     } else {
-        format!("{file}:{first}-{last}")
+        format!("{file}:{line}")
+    }
+}
+
+/// Where lines `first` to `last` of the joint file are: `file:first-last`, or
+/// `file: rows first-last` for a Parquet file.
+fn place(summary: &FkSummary, first: usize, last: usize) -> String {
+    let file = &summary.joints_file;
+    let span = if first == last {
+        format!("{first}")
+    } else {
+        format!("{first}-{last}")
+    };
+    match (summary.lines_are_rows, first == last) {
+        (false, _) => format!("{file}:{span}"),
+        (true, true) => format!("{file}: row {span}"),
+        (true, false) => format!("{file}: rows {span}"),
+    }
+}
+
+/// One warning for a run of rows below the warning margin.
+fn low_margin_words(summary: &FkSummary, run: &LowMargin, below: f64) -> String {
+    let (first, last) = run.lines;
+    let lines = place(summary, first, last);
+    let line = if summary.lines_are_rows {
+        "row"
+    } else {
+        "line"
     };
     let what = if run.min.0 < 0.0 {
         "on an unstable branch: the robot would snap"
@@ -263,7 +294,7 @@ fn low_margin_words(file: &str, run: &LowMargin, below: f64) -> String {
         "close to a snap"
     };
     format!(
-        "{lines}: stability margin below {below} on {} row{} ({what}; smallest {:.4} at line {})",
+        "{lines}: stability margin below {below} on {} row{} ({what}; smallest {:.4} at {line} {})",
         run.rows,
         if run.rows == 1 { "" } else { "s" },
         run.min.0,

@@ -11,8 +11,8 @@ mod common;
 use common::analysis::core_rows;
 use common::{arg, cli, fk_args, repo, run, run_stdin, stderr, stdin_path};
 
-/// Every case under `tests/cli/bad/`: `robot.toml`, `joints.csv` (`targets.csv` for the
-/// `ik-*` cases), `expected.txt` (a stable part of the one-line message), optionally
+/// Every case under `tests/cli/bad/`: `robot.toml`, `joints.csv` or `joints.parquet`
+/// (`targets.csv` or `.parquet` for the `ik-*` cases), `expected.txt` (a stable part of the one-line message), optionally
 /// `args` (the whole argument list, one per line) or `extra-args` (appended to
 /// `fk --robot robot.toml --joints joints.csv -o OUT`, or for `ik-*` cases to
 /// `ik --robot robot.toml --targets targets.csv -o OUT`). Runs in the case's directory;
@@ -36,24 +36,37 @@ fn bad_input_corpus_exits_2_with_one_line() {
             let text = std::fs::read_to_string(case.join(file)).ok()?;
             Some(text.lines().map(str::to_owned).collect())
         };
-        let command: &[&str] = if name.starts_with("ik-") {
-            &[
+        // the input: `joints.csv` (`targets.csv`), or the case's Parquet file
+        let input = |stem: &str| {
+            let parquet = format!("{stem}.parquet");
+            if case.join(&parquet).exists() {
+                parquet
+            } else {
+                format!("{stem}.csv")
+            }
+        };
+        let command: Vec<String> = if name.starts_with("ik-") {
+            [
                 "ik",
                 "--robot",
                 "robot.toml",
                 "--targets",
-                "targets.csv",
+                input("targets").as_str(),
                 "-o",
             ]
+            .map(str::to_owned)
+            .to_vec()
         } else {
-            &[
+            [
                 "fk",
                 "--robot",
                 "robot.toml",
                 "--joints",
-                "joints.csv",
+                input("joints").as_str(),
                 "-o",
             ]
+            .map(str::to_owned)
+            .to_vec()
         };
         let args: Vec<String> = match lines("args") {
             Some(a) => a,

@@ -303,6 +303,40 @@ fn ping_move_run_and_home_against_the_emulator() {
 }
 
 #[test]
+fn a_parquet_recording_holds_the_rows_a_csv_recording_holds() {
+    let emulator = Emulator::start(&[]);
+    let dir = Scratch::new();
+    let recording = dir.file("recording.parquet");
+    let o = emulator.record(&recording, &[]);
+    assert_ok(&o);
+    let bytes = std::fs::read(&recording).unwrap();
+    assert!(bytes.starts_with(b"PAR1") && bytes.ends_with(b"PAR1"));
+    let left: Vec<_> = std::fs::read_dir(dir.0.path()).unwrap().collect();
+    assert_eq!(left.len(), 1, "the journal is gone: {left:?}");
+    // the recording's columns, read back: the commanded joints of the trajectory, the
+    // run label, the tip left empty (null) for the tracker
+    let spec = ctr_formats::RobotSpec::from_path(Path::new(&rig_toml())).unwrap();
+    let mut s = ctr_formats::JointStream::from_path(Path::new(&recording), &spec.robot).unwrap();
+    let header: Vec<&str> = s.header().iter().map(String::as_str).collect();
+    assert_eq!(header.join(","), RECORDING_HEADER.replace(' ', ""));
+    let parser = s.parser(false);
+    let rows = s.next_piece(1000).unwrap().parse(&parser).unwrap();
+    let want = trajectory_rows();
+    assert_eq!(rows.len(), want.len());
+    for (r, q) in want.iter().enumerate() {
+        assert_eq!(rows.joints(r), q);
+        assert_eq!(rows.field(r, 1), "trajectory");
+        assert_eq!(rows.field(r, 10), "", "x_mm is null");
+    }
+    // a recording from the tracker needs its tip: the null is named with its row
+    let e = ctr_formats::Recording::from_path(Path::new(&recording), 2).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!("{recording}: row 1: column x_mm: no value (null)")
+    );
+}
+
+#[test]
 fn timed_trajectory_follows_t_s_and_writes_to_stdout() {
     let emulator = Emulator::start(&[]);
     let dir = Scratch::new();

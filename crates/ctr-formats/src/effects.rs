@@ -332,6 +332,136 @@ fn check_non_negative(
     Ok(())
 }
 
+/// `joint_offset` of a robot of `n` tubes: each list empty or one value per tube.
+fn check_joint_offset(o: &JointOffset, n: usize) -> Result<(), EffectProblem> {
+    if !o.feed_mm.is_empty() {
+        check_len("joint_offset", "feed_mm", &o.feed_mm, n, "tube")?;
+    }
+    if !o.rotation_deg.is_empty() {
+        check_len("joint_offset", "rotation_deg", &o.rotation_deg, n, "tube")?;
+    }
+    Ok(())
+}
+
+/// `friction` of a robot of `n` tubes: a rotation play per neighbouring pair, feed
+/// plays per tube (optional), none negative.
+fn check_friction(f: &Friction, n: usize) -> Result<(), EffectProblem> {
+    let pairs = n.saturating_sub(1);
+    if !f.rotation_play_deg.is_empty() || pairs > 0 {
+        check_len(
+            "friction",
+            "rotation_play_deg",
+            &f.rotation_play_deg,
+            pairs,
+            "neighbouring pair of tubes",
+        )?;
+    }
+    check_non_negative("friction", "rotation_play_deg", &f.rotation_play_deg)?;
+    if !f.feed_play_mm.is_empty() {
+        check_len("friction", "feed_play_mm", &f.feed_play_mm, n, "tube")?;
+        check_non_negative("friction", "feed_play_mm", &f.feed_play_mm)?;
+    }
+    Ok(())
+}
+
+/// `clearance` with `pairs` neighbouring pairs of tubes: either the cosine profile
+/// or a table per pair, not both.
+fn check_clearance(c: &Clearance, pairs: usize) -> Result<(), EffectProblem> {
+    let cosine = !c.max_deflection_deg.is_empty() || !c.peak_deg.is_empty();
+    let table = !c.table_deg.is_empty();
+    if cosine == table {
+        return Err((
+            vec!["clearance"],
+            "model.effects.clearance: give either max_deflection_deg and peak_deg \
+             (a cosine profile) or table_deg (a table per pair), not both or neither"
+                .into(),
+        ));
+    }
+    if cosine {
+        let pair = "neighbouring pair of tubes";
+        check_len(
+            "clearance",
+            "max_deflection_deg",
+            &c.max_deflection_deg,
+            pairs,
+            pair,
+        )?;
+        return check_len("clearance", "peak_deg", &c.peak_deg, pairs, pair);
+    }
+    if c.table_deg.len() != pairs {
+        return Err((
+            vec!["clearance", "table_deg"],
+            format!(
+                "model.effects.clearance.table_deg: {} tables, wanted {pairs} \
+                 (one per neighbouring pair of tubes)",
+                c.table_deg.len()
+            ),
+        ));
+    }
+    for t in &c.table_deg {
+        if t.is_empty() || t.len() > CLEARANCE_TABLE_CAPACITY {
+            return Err((
+                vec!["clearance", "table_deg"],
+                format!(
+                    "model.effects.clearance.table_deg: a table of {} values, \
+                     wanted 1 to {CLEARANCE_TABLE_CAPACITY}",
+                    t.len()
+                ),
+            ));
+        }
+        check_finite("clearance", "table_deg", t)?;
+    }
+    Ok(())
+}
+
+/// `gravity`: a finite, non-zero direction, every tube's density (`has_density`) to
+/// weigh it, and no clearance beside it (`with_clearance`).
+fn check_gravity(
+    g: &Gravity,
+    has_density: bool,
+    with_clearance: bool,
+) -> Result<(), EffectProblem> {
+    check_finite("gravity", "direction_W", &g.direction_w)?;
+    check_finite("gravity", "g_m_s2", &[g.g_m_s2])?;
+    if g.direction_w.iter().all(|&x| x == 0.0) {
+        return Err((
+            vec!["gravity", "direction_W"],
+            "model.effects.gravity.direction_W: [0, 0, 0] has no direction; wanted a \
+             unit vector in W"
+                .into(),
+        ));
+    }
+    if !has_density {
+        return Err((
+            vec!["gravity"],
+            "model.effects.gravity: every tube needs density_kg_m3 to weigh it".into(),
+        ));
+    }
+    if with_clearance {
+        return Err((
+            vec!["gravity"],
+            "model.effects.gravity: gravity together with clearance is not modelled \
+             (the loaded solver has no clearance kinks); keep one of them"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
+/// `registration`: finite numbers, and an axis wherever there is a rotation.
+fn check_registration(r: &Registration) -> Result<(), EffectProblem> {
+    check_finite("registration", "translation_mm", &r.translation_mm)?;
+    check_finite("registration", "rotation_axis", &r.rotation_axis)?;
+    check_finite("registration", "rotation_deg", &[r.rotation_deg])?;
+    if r.rotation_deg != 0.0 && r.rotation_axis.iter().all(|&x| x == 0.0) {
+        return Err((
+            vec!["registration", "rotation_axis"],
+            "model.effects.registration.rotation_axis: [0, 0, 0] has no direction".into(),
+        ));
+    }
+    Ok(())
+}
+
 impl Effects {
     /// The ids of the effects present, in the order they act.
     ///
@@ -390,109 +520,19 @@ impl Effects {
     pub fn check(&self, n: usize, has_density: bool) -> Result<(), EffectProblem> {
         let pairs = n.saturating_sub(1);
         if let Some(o) = &self.joint_offset {
-            if !o.feed_mm.is_empty() {
-                check_len("joint_offset", "feed_mm", &o.feed_mm, n, "tube")?;
-            }
-            if !o.rotation_deg.is_empty() {
-                check_len("joint_offset", "rotation_deg", &o.rotation_deg, n, "tube")?;
-            }
+            check_joint_offset(o, n)?;
         }
         if let Some(l) = &self.latency {
             check_finite("latency", "tau_s", &[l.tau_s])?;
         }
         if let Some(f) = &self.friction {
-            if !f.rotation_play_deg.is_empty() || pairs > 0 {
-                check_len(
-                    "friction",
-                    "rotation_play_deg",
-                    &f.rotation_play_deg,
-                    pairs,
-                    "neighbouring pair of tubes",
-                )?;
-            }
-            check_non_negative("friction", "rotation_play_deg", &f.rotation_play_deg)?;
-            if !f.feed_play_mm.is_empty() {
-                check_len("friction", "feed_play_mm", &f.feed_play_mm, n, "tube")?;
-                check_non_negative("friction", "feed_play_mm", &f.feed_play_mm)?;
-            }
+            check_friction(f, n)?;
         }
         if let Some(c) = &self.clearance {
-            let cosine = !c.max_deflection_deg.is_empty() || !c.peak_deg.is_empty();
-            let table = !c.table_deg.is_empty();
-            if cosine == table {
-                return Err((
-                    vec!["clearance"],
-                    "model.effects.clearance: give either max_deflection_deg and peak_deg \
-                     (a cosine profile) or table_deg (a table per pair), not both or neither"
-                        .into(),
-                ));
-            }
-            if cosine {
-                check_len(
-                    "clearance",
-                    "max_deflection_deg",
-                    &c.max_deflection_deg,
-                    pairs,
-                    "neighbouring pair of tubes",
-                )?;
-                check_len(
-                    "clearance",
-                    "peak_deg",
-                    &c.peak_deg,
-                    pairs,
-                    "neighbouring pair of tubes",
-                )?;
-            } else {
-                if c.table_deg.len() != pairs {
-                    return Err((
-                        vec!["clearance", "table_deg"],
-                        format!(
-                            "model.effects.clearance.table_deg: {} tables, wanted {pairs} \
-                             (one per neighbouring pair of tubes)",
-                            c.table_deg.len()
-                        ),
-                    ));
-                }
-                for t in &c.table_deg {
-                    if t.is_empty() || t.len() > CLEARANCE_TABLE_CAPACITY {
-                        return Err((
-                            vec!["clearance", "table_deg"],
-                            format!(
-                                "model.effects.clearance.table_deg: a table of {} values, \
-                                 wanted 1 to {CLEARANCE_TABLE_CAPACITY}",
-                                t.len()
-                            ),
-                        ));
-                    }
-                    check_finite("clearance", "table_deg", t)?;
-                }
-            }
+            check_clearance(c, pairs)?;
         }
         if let Some(g) = &self.gravity {
-            check_finite("gravity", "direction_W", &g.direction_w)?;
-            check_finite("gravity", "g_m_s2", &[g.g_m_s2])?;
-            if g.direction_w.iter().all(|&x| x == 0.0) {
-                return Err((
-                    vec!["gravity", "direction_W"],
-                    "model.effects.gravity.direction_W: [0, 0, 0] has no direction; wanted a \
-                     unit vector in W"
-                        .into(),
-                ));
-            }
-            if !has_density {
-                return Err((
-                    vec!["gravity"],
-                    "model.effects.gravity: every tube needs density_kg_m3 to weigh it".into(),
-                ));
-            }
-            if self.clearance.is_some() {
-                return Err((
-                    vec!["gravity"],
-                    "model.effects.gravity: gravity together with clearance is not modelled \
-                     (the loaded solver has no clearance kinks); keep one of them"
-                        .into(),
-                ));
-            }
+            check_gravity(g, has_density, self.clearance.is_some())?;
         }
         if let Some(s) = &self.stiffness {
             check_len("stiffness", "factor", &s.factor, n, "tube")?;
@@ -513,15 +553,7 @@ impl Effects {
             )?;
         }
         if let Some(r) = &self.registration {
-            check_finite("registration", "translation_mm", &r.translation_mm)?;
-            check_finite("registration", "rotation_axis", &r.rotation_axis)?;
-            check_finite("registration", "rotation_deg", &[r.rotation_deg])?;
-            if r.rotation_deg != 0.0 && r.rotation_axis.iter().all(|&x| x == 0.0) {
-                return Err((
-                    vec!["registration", "rotation_axis"],
-                    "model.effects.registration.rotation_axis: [0, 0, 0] has no direction".into(),
-                ));
-            }
+            check_registration(r)?;
         }
         Ok(())
     }

@@ -4,7 +4,9 @@
 //! what was wanted`, for example
 //! `joints.csv:17: column theta2_deg: "abc" is not a number` or
 //! `robot.toml:12:1: unknown field `youngs_modulus`, expected one of ...`.
-//! Lines are 1-based and count the CSV header as line 1.
+//! Lines are 1-based and count the CSV header as line 1. A Parquet file has rows, not
+//! lines: `joints.parquet: row 17: column s1_mm: ...`, rows 1-based (the first row of
+//! data is row 1).
 
 use ctr_core::{JointError, RobotError, Status};
 use std::fmt;
@@ -18,6 +20,9 @@ pub struct Location {
     pub line: Option<usize>,
     /// 1-based column (characters for TOML), when known.
     pub column: Option<usize>,
+    /// `line` is a 1-based row of a table without lines (a Parquet file's), not a
+    /// line of text.
+    pub is_row: bool,
 }
 
 impl Location {
@@ -27,6 +32,7 @@ impl Location {
             file: file.into(),
             line: None,
             column: None,
+            is_row: false,
         }
     }
 
@@ -36,6 +42,20 @@ impl Location {
             file: file.into(),
             line: Some(line),
             column: None,
+            is_row: false,
+        }
+    }
+
+    /// A row of a table without lines (a Parquet file), 1-based.
+    ///
+    /// ```
+    /// let at = ctr_formats::Location::row("j.parquet", 17);
+    /// assert_eq!(at.to_string(), "j.parquet: row 17");
+    /// ```
+    pub fn row(file: impl Into<String>, row: usize) -> Self {
+        Location {
+            is_row: true,
+            ..Location::line(file, row)
         }
     }
 }
@@ -43,6 +63,9 @@ impl Location {
 impl fmt::Display for Location {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.file)?;
+        if let (Some(row), true) = (self.line, self.is_row) {
+            return write!(f, ": row {row}");
+        }
         if let Some(line) = self.line {
             write!(f, ":{line}")?;
             if let Some(col) = self.column {
@@ -197,6 +220,29 @@ pub enum ErrorKind {
     #[error("{message}")]
     Csv {
         /// the csv crate's message
+        message: String,
+    },
+    /// A column of a Parquet file has a type that cannot hold what is wanted there.
+    #[error("column {column}: {found}, wanted {wanted}")]
+    ColumnType {
+        /// the column
+        column: String,
+        /// its type, in words (`BYTE_ARRAY (STRING)`)
+        found: String,
+        /// what it must hold
+        wanted: &'static str,
+    },
+    /// A cell of a column that needs a value has none (a Parquet null).
+    #[error("column {column}: no value (null)")]
+    NullValue {
+        /// the column
+        column: String,
+    },
+    /// A Parquet file could not be read or written (not Parquet, damaged, a codec
+    /// this build does not have).
+    #[error("{message}")]
+    Parquet {
+        /// what failed, and the parquet crate's message
         message: String,
     },
     /// Joint values the robot cannot take (the message names the column).

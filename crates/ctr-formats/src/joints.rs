@@ -2,7 +2,8 @@
 //! columns carried through as the raw strings they were.
 
 use super::table::{read_all, read_path, table_rows, Columns, Table};
-use crate::error::{Error, ErrorKind, Location};
+use crate::error::Error;
+use crate::joint_stream::{column_beyond, joint_check};
 use crate::robot::{joint_columns, AnyRobot};
 use std::io::Read;
 use std::path::Path;
@@ -48,18 +49,8 @@ impl JointTable {
             required: &required,
             optional: None,
         };
-        let header_check = |name: &str| match tube_of_column(name) {
-            Some(tube) if tube > n => Err(ErrorKind::ColumnBeyondRobot {
-                name: name.to_owned(),
-                n_tubes: n,
-            }),
-            _ => Ok(()),
-        };
-        let row_check = |joints: &[f64], line: usize| {
-            robot
-                .validate_joints(joints)
-                .map_err(|e| Error::new(Location::line(file, line), ErrorKind::Joint(e)))
-        };
+        let header_check = |name: &str| column_beyond(name, n);
+        let row_check = joint_check(robot, file, false);
         let table = Table::read(data, file, &columns, header_check, row_check, threads)?;
         Ok(JointTable { table, n_tubes: n })
     }
@@ -73,12 +64,16 @@ impl JointTable {
 
     /// The 1-based line of the header.
     pub fn header_line(&self) -> usize {
-        self.table.header_line
+        self.table.header.line()
     }
 
     /// The index of the column named `name` (header names trimmed), if present.
     pub fn column(&self, name: &str) -> Option<usize> {
-        self.table.header.iter().position(|h| h.trim() == name)
+        self.table
+            .header
+            .names
+            .iter()
+            .position(|h| h.trim() == name)
     }
 
     /// The raw field of data row `row` in column `column` (an index into the header).
@@ -105,33 +100,5 @@ impl JointTable {
     /// All rows' joints, row after row (`2 * n_tubes()` values per row).
     pub fn all_joints(&self) -> &[f64] {
         &self.table.values
-    }
-}
-
-/// The tube number of a joint-like column name (`s3_mm`, `theta3_deg`).
-fn tube_of_column(name: &str) -> Option<usize> {
-    let digits = name
-        .strip_prefix('s')
-        .and_then(|r| r.strip_suffix("_mm"))
-        .or_else(|| {
-            name.strip_prefix("theta")
-                .and_then(|r| r.strip_suffix("_deg"))
-        })?;
-    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    digits.parse().ok()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn tube_columns() {
-        assert_eq!(tube_of_column("s3_mm"), Some(3));
-        assert_eq!(tube_of_column("theta12_deg"), Some(12));
-        assert_eq!(tube_of_column("s_mm"), None);
-        assert_eq!(tube_of_column("sx_mm"), None);
     }
 }

@@ -130,6 +130,13 @@
 //! the first in the file). Output rows are formatted into byte buffers, floats with
 //! `ryu` laid out as Rust's `Display` writes them.
 //!
+//! [`JointStream`] reads a joint file of any size in bounded memory: blocks of the file
+//! are cut into pieces of whole records on one thread (only line ends and quotes are
+//! looked at there), and each piece is parsed and checked where it is worked on, with
+//! the same rows, fields, values and errors as [`JointTable`]. A file that is not text
+//! (Parquet, gzip, a spreadsheet's workbook, UTF-16) is named as such instead of being
+//! refused as "not valid UTF-8 text".
+//!
 //! # Recording CSV (written by `ctr-cli hw run`)
 //!
 //! [`RecordingWriter`] writes [`recording_header`]:
@@ -157,23 +164,30 @@
 //! point at the offending value.
 
 mod actuation;
+mod columnar;
 mod csvout;
 mod discrepancy;
 mod effects;
 mod empirical;
 mod error;
+mod joint_stream;
 mod joints;
 mod output;
 pub mod parallel;
 mod recorded;
 mod recording;
+mod records;
 mod robot;
 mod robot_file;
+mod stream;
 mod table;
 mod targets;
 mod tips;
 mod toml_doc;
 
+pub use columnar::{
+    is_number_column, is_parquet, Batch, ColumnType, ParquetOutput, PARQUET_EXTENSION,
+};
 pub use error::{status_name, Error, ErrorKind, Location};
 pub use robot::{canonical_quaternion, joint_columns, joints_of, AnyRobot, FkResult};
 
@@ -187,6 +201,7 @@ pub use effects::{
     SensorOffset, SensorRotation, Stiffness, CLEARANCE_FIT_TABLE_SIZES,
 };
 pub use empirical::{Correction, Empirical, EmpiricalTerm, Feature, Term, AXES};
+pub use joint_stream::{JointParser, JointPiece, JointRows, JointStream};
 pub use joints::JointTable;
 pub use output::AtomicFile;
 pub use recorded::{AngularColumns, AngularWeight, RecordedRow, Recording, Run, UNIT_TOLERANCE};
@@ -196,10 +211,12 @@ pub use robot_file::{
     UnknownModelKind,
 };
 pub use targets::{
-    ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow, IkTarget, TargetTable,
-    ORIENTATION_COLUMNS, ORIENTATION_TOLERANCE_DEG, QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
+    ik_batch, ik_column_types, ik_columns, ik_output_columns, write_ik_row, IkOutputColumns, IkRow,
+    IkTarget, TargetTable, ORIENTATION_COLUMNS, ORIENTATION_TOLERANCE_DEG,
+    QUATERNION_NORM_TOLERANCE, TARGET_COLUMNS,
 };
 pub use tips::{
-    format_float, tip_header, tip_header_for, write_header, write_tip_row, write_tip_row_for,
-    Carried, TipColumns, TipWriter, MARGIN_COLUMN, STATUS_COLUMNS, TIP_COLUMNS,
+    format_float, tip_batch, tip_column_types, tip_header, tip_header_for, write_header,
+    write_tip_row, write_tip_row_for, Carried, CarriedColumns, TipColumns, TipWriter,
+    MARGIN_COLUMN, STATUS_COLUMNS, TIP_COLUMNS,
 };

@@ -23,6 +23,11 @@ use tempfile::NamedTempFile;
 /// Bytes gathered before a write to the temporary file (flush writes sooner).
 const BUFFER_BYTES: usize = 1 << 20;
 
+/// Bytes written straight through ([`AtomicFile::write_through`]) after which the data
+/// so far is synced to the disk behind the writer, on a thread of its own: the sync
+/// of the commit then finds only the last of a large output left to write.
+const SYNC_BEHIND_BYTES: u64 = 32 << 20;
+
 /// A file being written; it appears at its path only on [`commit`](Self::commit).
 /// Dropping it without committing deletes the temporary file (but a journal's).
 pub struct AtomicFile {
@@ -30,6 +35,14 @@ pub struct AtomicFile {
     file: String,
     tmp: BufWriter<NamedTempFile>,
     journal: bool,
+    /// bytes written through, and where the last sync behind started
+    through: u64,
+    synced: u64,
+    /// the sync behind the writer in flight
+    syncing: Option<std::thread::JoinHandle<io::Result<()>>>,
+    /// bytes written (buffered or through), and the length reserved ahead of them
+    written: u64,
+    reserved: u64,
 }
 
 /// The directory an output file at `path` goes into, after checking that it exists and
@@ -138,7 +151,13 @@ impl AtomicFile {
             .file_name()
             .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
         let (prefix, suffix) = if journal {
-            (format!("{name}."), ".partial")
+            // a Parquet output's journal holds CSV rows: named so
+            let partial = if crate::columnar::is_parquet(path) {
+                ".partial.csv"
+            } else {
+                ".partial"
+            };
+            (format!("{name}."), partial)
         } else {
             (format!(".{name}."), ".tmp")
         };
@@ -165,12 +184,114 @@ impl AtomicFile {
             file,
             tmp: BufWriter::with_capacity(BUFFER_BYTES, tmp),
             journal,
+            through: 0,
+            synced: 0,
+            syncing: None,
+            written: 0,
+            reserved: 0,
         })
+    }
+
+    /// Writes `bytes` past the buffer, straight to the temporary file (after what is
+    /// buffered): for large pieces written whole, which the buffer would only copy.
+    ///
+    /// ```
+    /// use std::io::Write;
+    /// let dir = tempfile::tempdir()?;
+    /// let path = dir.path().join("tips.csv");
+    /// let mut out = ctr_formats::AtomicFile::create(&path)?;
+    /// out.write_all(b"x_mm\n")?;
+    /// out.write_through(b"1\n2\n")?;
+    /// out.commit()?;
+    /// assert_eq!(std::fs::read_to_string(&path)?, "x_mm\n1\n2\n");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// Every [`SYNC_BEHIND_BYTES`] written this way, the data so far starts being synced
+    /// to the disk on a thread of its own (one at a time), so that the sync of
+    /// [`commit`](Self::commit) has only the rest left to wait for.
+    pub fn write_through(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.tmp.flush()?;
+        self.tmp.get_mut().write_all(bytes)?;
+        self.through += bytes.len() as u64;
+        self.written += bytes.len() as u64;
+        if self.through - self.synced >= SYNC_BEHIND_BYTES && self.sync_done()? {
+            let file = self.tmp.get_ref().as_file().try_clone()?;
+            self.synced = self.through;
+            self.syncing = Some(std::thread::spawn(move || file.sync_data()));
+        }
+        Ok(())
+    }
+
+    /// Reserves the disk blocks of a file of `bytes` ahead of the writes (Linux:
+    /// `fallocate`; best effort, nothing elsewhere): the file system then has no block
+    /// to find for each page written. The file is cut back to what was written when
+    /// it is committed.
+    ///
+    /// ```
+    /// use std::io::Write;
+    /// let dir = tempfile::tempdir()?;
+    /// let path = dir.path().join("big.csv");
+    /// let mut out = ctr_formats::AtomicFile::create(&path)?;
+    /// out.reserve(1 << 20);
+    /// out.write_through(b"x_mm\n1\n")?;
+    /// out.commit()?;
+    /// assert_eq!(std::fs::read(&path)?, b"x_mm\n1\n");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn reserve(&mut self, bytes: u64) {
+        #[cfg(target_os = "linux")]
+        {
+            use rustix::fs::{fallocate, FallocateFlags};
+            let file = self.tmp.get_ref().as_file();
+            if bytes > self.reserved && fallocate(file, FallocateFlags::empty(), 0, bytes).is_ok() {
+                self.reserved = bytes;
+            }
+        }
+        #[cfg(not(target_os = "linux"))]
+        let _ = bytes;
+    }
+
+    /// True when no sync behind the writer is in flight (the last one's error, if it
+    /// failed).
+    fn sync_done(&mut self) -> io::Result<bool> {
+        match self.syncing.take() {
+            Some(h) if !h.is_finished() => {
+                self.syncing = Some(h);
+                Ok(false)
+            }
+            Some(h) => h.join().unwrap_or(Ok(())).map(|()| true),
+            None => Ok(true),
+        }
+    }
+
+    /// Waits for the sync behind the writer in flight, if any.
+    fn wait_for_sync(&mut self) -> io::Result<()> {
+        match self.syncing.take() {
+            Some(h) => h.join().unwrap_or(Ok(())),
+            None => Ok(()),
+        }
     }
 
     /// The temporary file being written (renamed to the target on commit).
     pub fn temp_path(&self) -> &Path {
         self.tmp.get_ref().path()
+    }
+
+    /// Flushes the temporary file and deletes it (a journal too): for a journal whose
+    /// rows have been put in place by other means.
+    pub fn discard(mut self) -> Result<(), Error> {
+        let flushed = self.tmp.flush();
+        let removed = std::fs::remove_file(self.temp_path());
+        flushed.and(removed).map_err(|source| {
+            Error::new(
+                Location::file(&self.file),
+                ErrorKind::Io {
+                    action: "remove the journal of",
+                    source,
+                },
+            )
+        })
     }
 
     /// Flushes, syncs and renames the temporary file over the target (replacing it).
@@ -185,15 +306,24 @@ impl AtomicFile {
         self.place(false)
     }
 
-    fn place(self, replace: bool) -> Result<(), Error> {
+    fn place(mut self, replace: bool) -> Result<(), Error> {
+        let synced = self.wait_for_sync();
         let file = self.file;
+        let written = self.written;
+        let cut = |f: &std::fs::File| match self.reserved > written {
+            true => f.set_len(written),
+            false => Ok(()),
+        };
         let fail =
             |action, source| Error::new(Location::file(&file), ErrorKind::Io { action, source });
         let tmp = self
             .tmp
             .into_inner()
             .map_err(|e| fail("write", e.into_error()))?;
-        tmp.as_file().sync_all().map_err(|e| fail("write", e))?;
+        synced
+            .and_then(|()| cut(tmp.as_file()))
+            .and_then(|()| tmp.as_file().sync_all())
+            .map_err(|e| fail("write", e))?;
         let placed = if replace {
             tmp.persist(&self.path)
         } else {
@@ -245,7 +375,9 @@ impl std::fmt::Debug for AtomicFile {
 
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.tmp.write(buf)
+        let n = self.tmp.write(buf)?;
+        self.written += n as u64;
+        Ok(n)
     }
     fn flush(&mut self) -> io::Result<()> {
         self.tmp.flush()

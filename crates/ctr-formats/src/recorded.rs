@@ -14,8 +14,12 @@
 //! depend on the order of the rows.
 
 use super::table::closest;
+use crate::columnar::read::ParquetReader;
+use crate::columnar::{describe, holds_numbers, is_parquet, Column, MAGIC};
 use crate::error::{Error, ErrorKind, Location};
+use crate::records::not_text_error;
 use crate::robot::joint_columns;
+use std::borrow::Cow;
 use std::ops::Range;
 use std::path::Path;
 
@@ -143,19 +147,35 @@ const TANGENT: [&str; 3] = ["tx", "ty", "tz"];
 const FORCE: [&str; 3] = ["fx_n", "fy_n", "fz_n"];
 
 impl Recording {
-    /// Reads a recording of an `n_tubes`-tube robot; `file` names it in errors.
+    /// Reads a recording of an `n_tubes`-tube robot (CSV, or Parquet when the bytes are
+    /// a Parquet file's); `file` names it in errors.
     pub fn read(reader: impl std::io::Read, file: &str, n_tubes: usize) -> Result<Self, Error> {
         let data = super::table::read_all(reader, file)?;
+        Self::from_bytes(data, file, n_tubes)
+    }
+
+    /// Reads a recording file; errors name the path as given. Parquet when its name
+    /// ends in `.parquet` or its bytes start as a Parquet file's; else CSV.
+    pub fn from_path(path: &Path, n_tubes: usize) -> Result<Self, Error> {
+        if is_parquet(path) {
+            return Self::parquet(ParquetReader::open(path)?, n_tubes);
+        }
+        let (file, data) = super::table::read_path(path)?;
+        Self::from_bytes(data, &file, n_tubes)
+    }
+
+    fn from_bytes(data: Vec<u8>, file: &str, n_tubes: usize) -> Result<Self, Error> {
+        if data.starts_with(MAGIC) {
+            return Self::parquet(ParquetReader::from_bytes(data, file)?, n_tubes);
+        }
         Self::parse(&data, file, n_tubes)
     }
 
-    /// Reads a recording file; errors name the path as given.
-    pub fn from_path(path: &Path, n_tubes: usize) -> Result<Self, Error> {
-        let (file, data) = super::table::read_path(path)?;
-        Self::parse(&data, &file, n_tubes)
-    }
-
+    /// Reads CSV: the header, then every record as a row.
     fn parse(data: &[u8], file: &str, n_tubes: usize) -> Result<Self, Error> {
+        if let Some(e) = not_text_error(file, &data[crate::records::bom_len(data)..]) {
+            return Err(e);
+        }
         let mut reader = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
@@ -173,167 +193,59 @@ impl Recording {
             Some(r) => r.map_err(|e| csv_error(e, file, data, &mut LineCounter::default()))?,
         };
         let names: Vec<&str> = header.iter().map(str::trim).collect();
-        for (i, n) in names.iter().enumerate() {
-            if !n.is_empty() && names[..i].contains(n) {
-                return Err(Error::new(
-                    Location::line(file, 1),
-                    ErrorKind::DuplicateColumn {
-                        name: (*n).to_owned(),
-                    },
-                ));
-            }
-        }
-        let find = |c: &str| names.iter().position(|n| *n == c);
-        let need = required(n_tubes);
-        let mut idx = Vec::with_capacity(need.len());
-        for c in &need {
-            match find(c) {
-                Some(i) => idx.push(i),
-                None => {
-                    return Err(Error::new(
-                        Location::line(file, 1),
-                        ErrorKind::MissingColumn {
-                            name: c.clone(),
-                            similar: closest(c, names.iter().filter(|n| find_in(&need, n)))
-                                .map(str::to_owned),
-                            required: need.join(","),
-                        },
-                    ))
-                }
-            }
-        }
-        let group = |cols: &[&str]| -> Result<Option<Vec<usize>>, Error> {
-            let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
-            if found.iter().all(Option::is_none) {
-                return Ok(None);
-            }
-            match found.iter().position(Option::is_none) {
-                None => Ok(Some(found.into_iter().flatten().collect())),
-                Some(k) => Err(Error::new(
-                    Location::line(file, 1),
-                    ErrorKind::MissingColumn {
-                        name: cols[k].to_owned(),
-                        similar: None,
-                        required: cols.join(","),
-                    },
-                )),
-            }
-        };
-        let quat = group(&QUAT)?;
-        let tangent_cols = group(&TANGENT)?;
-        let force = group(&FORCE)?;
-        let time = find("t_s");
-        let run_col = find("run");
-        let width = names.len();
-
-        let mut rows = Vec::new();
-        let mut runs: Vec<Run> = Vec::new();
+        let cols = RecordingColumns::find(&names, n_tubes, Location::line(file, 1))?;
+        let mut rows = RowsSoFar::default();
         let mut lines = LineCounter::default();
         for record in records {
             let record = record.map_err(|e| csv_error(e, file, data, &mut lines))?;
             let line = lines.line_at(data, record_start(data, record.position()));
             let at = |kind| Error::new(Location::line(file, line), kind);
-            if record.len() != width {
+            if record.len() != names.len() {
                 return Err(at(ErrorKind::RaggedRow {
                     found: record.len(),
-                    expected: width,
+                    expected: names.len(),
                 }));
             }
-            let num = |i: usize| -> Result<f64, Error> {
-                let cell = record[i].trim();
-                match cell.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
-                    Ok(_) => Err(at(ErrorKind::NotFinite {
-                        column: names[i].to_owned(),
-                        found: cell.to_owned(),
-                    })),
-                    Err(_) => Err(at(ErrorKind::NotANumber {
-                        column: names[i].to_owned(),
-                        found: cell.to_owned(),
-                    })),
-                }
+            let cells = CsvCells {
+                record: &record,
+                names: &names,
             };
-            let values = idx
-                .iter()
-                .map(|&i| num(i))
-                .collect::<Result<Vec<f64>, _>>()?;
-            let q = values[..2 * n_tubes].to_vec();
-            let p = [
-                values[2 * n_tubes],
-                values[2 * n_tubes + 1],
-                values[2 * n_tubes + 2],
-            ];
-            let t_s = match time {
-                Some(i) => num(i)?,
-                None => rows.len() as f64,
-            };
-            let label = run_col.map_or("all", |i| record[i].trim());
-            let quaternion = match &quat {
-                Some(c) => {
-                    let q = [num(c[0])?, num(c[1])?, num(c[2])?, num(c[3])?];
-                    Some(unit(q).map_err(|norm| at(ErrorKind::NotUnitQuaternion { q, norm }))?)
-                }
-                None => None,
-            };
-            let tangent = match &tangent_cols {
-                Some(c) => {
-                    let t = [num(c[0])?, num(c[1])?, num(c[2])?];
-                    Some(unit(t).map_err(|norm| at(ErrorKind::NotUnitTangent { t, norm }))?)
-                }
-                None => None,
-            };
-            let force_n = match &force {
-                Some(c) => [num(c[0])?, num(c[1])?, num(c[2])?],
-                None => [0.0; 3],
-            };
-            let i = rows.len();
-            match runs.last_mut() {
-                Some(r) if r.label == label => {
-                    let prev: &RecordedRow = &rows[i - 1];
-                    if t_s < prev.t_s {
-                        return Err(at(ErrorKind::Csv {
-                            message: format!(
-                                "column t_s: {t_s} is earlier than the previous row's {} in run \
-                                 {label}; rows of a run must be in time order",
-                                prev.t_s
-                            ),
-                        }));
-                    }
-                    r.rows.end = i + 1;
-                }
-                _ => runs.push(Run {
-                    label: label.to_owned(),
-                    rows: i..i + 1,
-                }),
+            rows.push(&cols, &cells, line, at)?;
+        }
+        rows.finish(file, n_tubes, &cols)
+    }
+
+    /// Reads Parquet: every row, the columns of numbers checked to hold numbers.
+    fn parquet(mut reader: ParquetReader, n_tubes: usize) -> Result<Self, Error> {
+        let file = reader.file().to_owned();
+        let names = reader.names();
+        let names: Vec<&str> = names.iter().map(|n| n.trim()).collect();
+        let cols = RecordingColumns::find(&names, n_tubes, Location::file(&file))?;
+        for i in cols.numbers() {
+            let column = &reader.columns[i];
+            if !holds_numbers(&column.ty) {
+                return Err(Error::new(
+                    Location::file(&file),
+                    ErrorKind::ColumnType {
+                        column: column.name.clone(),
+                        found: describe(&column.ty),
+                        wanted: "numbers (DOUBLE, FLOAT, INT32 or INT64)",
+                    },
+                ));
             }
-            rows.push(RecordedRow {
-                line,
-                t_s,
-                run: runs.len() - 1,
-                q,
-                p,
-                quaternion,
-                tangent,
-                force_n,
-            });
         }
-        if rows.is_empty() {
-            return Err(Error::new(
-                Location::file(file),
-                ErrorKind::Csv {
-                    message: "no rows after the header; a recording needs at least one".into(),
-                },
-            ));
+        let columns = reader.next_rows(usize::MAX)?;
+        let mut rows = RowsSoFar::default();
+        for r in 0..columns.first().map_or(0, Column::len) {
+            let at = |kind| Error::new(Location::row(&file, r + 1), kind);
+            let cells = ParquetCells {
+                columns: &columns,
+                names: &names,
+                row: r,
+            };
+            rows.push(&cols, &cells, r + 1, at)?;
         }
-        Ok(Recording {
-            file: file.to_owned(),
-            n_tubes,
-            rows,
-            runs,
-            has_time: time.is_some(),
-            has_force: force.is_some(),
-            angular: None,
-        })
+        rows.finish(&file, n_tubes, &cols)
     }
 
     /// The angular column set a residual can use: the orientation when recorded (it
@@ -363,6 +275,264 @@ impl Recording {
             .iter()
             .map(|r| r.t_s)
             .collect()
+    }
+}
+
+/// Where a recording's columns are (indices into its header).
+struct RecordingColumns {
+    /// the joints then the tip, in order
+    required: Vec<usize>,
+    quaternion: Option<Vec<usize>>,
+    tangent: Option<Vec<usize>>,
+    force: Option<Vec<usize>>,
+    time: Option<usize>,
+    run: Option<usize>,
+}
+
+impl RecordingColumns {
+    /// Finds the columns in the header `names` (trimmed; `at` locates the header):
+    /// no name twice, every required column, each optional set whole or absent.
+    fn find(names: &[&str], n_tubes: usize, at: Location) -> Result<Self, Error> {
+        let fail = |kind| Error::new(at.clone(), kind);
+        for (i, n) in names.iter().enumerate() {
+            if !n.is_empty() && names[..i].contains(n) {
+                let name = (*n).to_owned();
+                return Err(fail(ErrorKind::DuplicateColumn { name }));
+            }
+        }
+        let find = |c: &str| names.iter().position(|n| *n == c);
+        let need = required(n_tubes);
+        let mut required = Vec::with_capacity(need.len());
+        for c in &need {
+            match find(c) {
+                Some(i) => required.push(i),
+                None => {
+                    return Err(fail(ErrorKind::MissingColumn {
+                        name: c.clone(),
+                        similar: closest(c, names.iter().filter(|n| find_in(&need, n)))
+                            .map(str::to_owned),
+                        required: need.join(","),
+                    }))
+                }
+            }
+        }
+        let group = |cols: &[&str]| -> Result<Option<Vec<usize>>, Error> {
+            let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
+            if found.iter().all(Option::is_none) {
+                return Ok(None);
+            }
+            match found.iter().position(Option::is_none) {
+                None => Ok(Some(found.into_iter().flatten().collect())),
+                Some(k) => Err(fail(ErrorKind::MissingColumn {
+                    name: cols[k].to_owned(),
+                    similar: None,
+                    required: cols.join(","),
+                })),
+            }
+        };
+        Ok(RecordingColumns {
+            required,
+            quaternion: group(&QUAT)?,
+            tangent: group(&TANGENT)?,
+            force: group(&FORCE)?,
+            time: find("t_s"),
+            run: find("run"),
+        })
+    }
+
+    /// The columns that hold numbers.
+    fn numbers(&self) -> impl Iterator<Item = usize> + '_ {
+        let sets = [&self.quaternion, &self.tangent, &self.force];
+        self.required
+            .iter()
+            .copied()
+            .chain(sets.into_iter().flatten().flatten().copied())
+            .chain(self.time)
+    }
+}
+
+/// The cells of one row, however the file keeps them.
+trait Cells {
+    /// Cell `i` as a finite number.
+    fn number(&self, i: usize) -> Result<f64, ErrorKind>;
+    /// Cell `i` as text (a run label), trimmed.
+    fn label(&self, i: usize) -> Cow<'_, str>;
+}
+
+/// A CSV record's cells; `names` are the header's, trimmed.
+struct CsvCells<'a> {
+    record: &'a csv::StringRecord,
+    names: &'a [&'a str],
+}
+
+impl Cells for CsvCells<'_> {
+    fn number(&self, i: usize) -> Result<f64, ErrorKind> {
+        let cell = self.record[i].trim();
+        match cell.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => Err(ErrorKind::NotFinite {
+                column: self.names[i].to_owned(),
+                found: cell.to_owned(),
+            }),
+            Err(_) => Err(ErrorKind::NotANumber {
+                column: self.names[i].to_owned(),
+                found: cell.to_owned(),
+            }),
+        }
+    }
+
+    fn label(&self, i: usize) -> Cow<'_, str> {
+        Cow::Borrowed(self.record[i].trim())
+    }
+}
+
+/// A row of a Parquet file's columns; `names` are the columns', trimmed.
+struct ParquetCells<'a> {
+    columns: &'a [Column],
+    names: &'a [&'a str],
+    row: usize,
+}
+
+impl Cells for ParquetCells<'_> {
+    fn number(&self, i: usize) -> Result<f64, ErrorKind> {
+        let column = &self.columns[i];
+        match column.number(self.row) {
+            Some(v) if v.is_finite() => Ok(v),
+            Some(_) => Err(ErrorKind::NotFinite {
+                column: self.names[i].to_owned(),
+                found: column.text(self.row).into_owned(),
+            }),
+            None => Err(ErrorKind::NullValue {
+                column: self.names[i].to_owned(),
+            }),
+        }
+    }
+
+    fn label(&self, i: usize) -> Cow<'_, str> {
+        match self.columns[i].text(self.row) {
+            Cow::Borrowed(s) => Cow::Borrowed(s.trim()),
+            Cow::Owned(s) => Cow::Owned(s.trim().to_owned()),
+        }
+    }
+}
+
+/// The rows and runs of a recording read so far.
+#[derive(Default)]
+struct RowsSoFar {
+    rows: Vec<RecordedRow>,
+    runs: Vec<Run>,
+}
+
+impl RowsSoFar {
+    /// Adds the row of `cells` (at `line`, or at a Parquet file's row), checked: its
+    /// numbers, its unit vectors, its time after the previous row's of its run.
+    fn push(
+        &mut self,
+        cols: &RecordingColumns,
+        cells: &impl Cells,
+        line: usize,
+        at: impl Fn(ErrorKind) -> Error,
+    ) -> Result<(), Error> {
+        let num = |i: usize| cells.number(i).map_err(&at);
+        let values = cols
+            .required
+            .iter()
+            .map(|&i| num(i))
+            .collect::<Result<Vec<f64>, _>>()?;
+        let n = values.len() - TIP.len();
+        let t_s = match cols.time {
+            Some(i) => num(i)?,
+            None => self.rows.len() as f64,
+        };
+        let label = cols.run.map_or(Cow::Borrowed("all"), |i| cells.label(i));
+        let quaternion = match &cols.quaternion {
+            Some(c) => {
+                let q = [num(c[0])?, num(c[1])?, num(c[2])?, num(c[3])?];
+                Some(unit(q).map_err(|norm| at(ErrorKind::NotUnitQuaternion { q, norm }))?)
+            }
+            None => None,
+        };
+        let tangent = match &cols.tangent {
+            Some(c) => {
+                let t = [num(c[0])?, num(c[1])?, num(c[2])?];
+                Some(unit(t).map_err(|norm| at(ErrorKind::NotUnitTangent { t, norm }))?)
+            }
+            None => None,
+        };
+        let force_n = match &cols.force {
+            Some(c) => [num(c[0])?, num(c[1])?, num(c[2])?],
+            None => [0.0; 3],
+        };
+        self.add_to_run(&label, t_s, &at)?;
+        self.rows.push(RecordedRow {
+            line,
+            t_s,
+            run: self.runs.len() - 1,
+            q: values[..n].to_vec(),
+            p: [values[n], values[n + 1], values[n + 2]],
+            quaternion,
+            tangent,
+            force_n,
+        });
+        Ok(())
+    }
+
+    /// Puts the next row (of run `label`, at `t_s`) in its run: the run of the row
+    /// before when it has the same label (then not earlier than that row), else a new
+    /// one.
+    fn add_to_run(
+        &mut self,
+        label: &str,
+        t_s: f64,
+        at: impl Fn(ErrorKind) -> Error,
+    ) -> Result<(), Error> {
+        let i = self.rows.len();
+        match self.runs.last_mut() {
+            Some(r) if r.label == label => {
+                let prev: &RecordedRow = &self.rows[i - 1];
+                if t_s < prev.t_s {
+                    return Err(at(ErrorKind::Csv {
+                        message: format!(
+                            "column t_s: {t_s} is earlier than the previous row's {} in run \
+                             {label}; rows of a run must be in time order",
+                            prev.t_s
+                        ),
+                    }));
+                }
+                r.rows.end = i + 1;
+            }
+            _ => self.runs.push(Run {
+                label: label.to_owned(),
+                rows: i..i + 1,
+            }),
+        }
+        Ok(())
+    }
+
+    /// The recording, which must have a row.
+    fn finish(
+        self,
+        file: &str,
+        n_tubes: usize,
+        cols: &RecordingColumns,
+    ) -> Result<Recording, Error> {
+        if self.rows.is_empty() {
+            return Err(Error::new(
+                Location::file(file),
+                ErrorKind::Csv {
+                    message: "no rows after the header; a recording needs at least one".into(),
+                },
+            ));
+        }
+        Ok(Recording {
+            file: file.to_owned(),
+            n_tubes,
+            rows: self.rows,
+            runs: self.runs,
+            has_time: cols.time.is_some(),
+            has_force: cols.force.is_some(),
+            angular: None,
+        })
     }
 }
 

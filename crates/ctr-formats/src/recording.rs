@@ -21,6 +21,7 @@
 use super::actuation::JointId;
 use super::format_float;
 use super::output::AtomicFile;
+use crate::columnar::{is_parquet, ParquetOutput};
 use crate::error::{Error, ErrorKind, Location};
 use std::io::{self, Write};
 use std::path::Path;
@@ -60,6 +61,8 @@ pub fn recording_header(n_tubes: usize) -> Vec<String> {
 pub struct RecordingWriter<W: Write> {
     out: W,
     file: String,
+    /// the recording's path, for one written to a file
+    path: Option<std::path::PathBuf>,
     n_tubes: usize,
     rows: usize,
     /// [`finish`](RecordingWriter::finish) replaces an existing recording
@@ -73,6 +76,7 @@ impl<W: Write> RecordingWriter<W> {
         let mut writer = RecordingWriter {
             out,
             file: file.to_owned(),
+            path: None,
             n_tubes,
             rows: 0,
             replace: false,
@@ -180,6 +184,7 @@ impl RecordingWriter<AtomicFile> {
         }
         let mut writer = RecordingWriter::new(AtomicFile::journal(path)?, &file, n_tubes)?;
         writer.replace = overwrite;
+        writer.path = Some(path.to_path_buf());
         Ok(writer)
     }
 
@@ -203,12 +208,39 @@ impl RecordingWriter<AtomicFile> {
     /// Syncs the journal and renames it to the recording (replacing an existing one
     /// only if created with `overwrite`). On an error the journal is kept, with every
     /// row written.
-    pub fn finish(self) -> Result<(), Error> {
-        if self.replace {
-            self.out.commit()
-        } else {
-            self.out.commit_new()
-        }
+    ///
+    /// A recording named `*.parquet` is written as Parquet from the journal (which holds
+    /// the rows as CSV, `NAME.parquet.XXXXXX.partial.csv`), and the journal is removed
+    /// once the Parquet file is in place.
+    pub fn finish(mut self) -> Result<(), Error> {
+        let parquet = self
+            .path
+            .as_deref()
+            .filter(|p| is_parquet(p))
+            .map(Path::to_owned);
+        let Some(path) = parquet else {
+            return if self.replace {
+                self.out.commit()
+            } else {
+                self.out.commit_new()
+            };
+        };
+        let journal = self.out.temp_path().to_owned();
+        let rows = self
+            .out
+            .flush()
+            .and_then(|()| std::fs::read(&journal))
+            .map_err(|source| {
+                Error::new(
+                    Location::file(journal.display().to_string()),
+                    ErrorKind::Io {
+                        action: "read",
+                        source,
+                    },
+                )
+            })?;
+        ParquetOutput::from_csv(&rows, &journal.display().to_string(), &path, self.replace)?;
+        self.out.discard()
     }
 }
 
@@ -309,6 +341,42 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "another run's\n");
         let kept = std::fs::read_to_string(&journal).unwrap();
         assert!(kept.ends_with("0,mine,1,2,1,2,,,\n"), "{kept}");
+    }
+
+    #[test]
+    fn a_parquet_recording_is_written_from_its_journal() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rec.parquet");
+        let mut rec = RecordingWriter::create(&path, 1, false).unwrap();
+        rec.write_row(0.25, "a, b", &[10.0, 90.0], &[10.0, 89.5])
+            .unwrap();
+        rec.write_row(0.5, "a, b", &[11.0, 91.0], &[11.0, 90.5])
+            .unwrap();
+        let journal = rec.journal_path().to_owned();
+        let name = journal.file_name().unwrap().to_str().unwrap().to_owned();
+        assert!(
+            name.starts_with("rec.parquet.") && name.ends_with(".partial.csv"),
+            "{name}"
+        );
+        rec.finish().unwrap();
+        assert!(!journal.exists(), "the journal is removed");
+        let mut read = crate::columnar::read::ParquetReader::open(&path).unwrap();
+        assert_eq!(read.names(), recording_header(1));
+        let columns = read.next_rows(10).unwrap();
+        assert_eq!(
+            (columns[0].number(1), columns[1].text(0)),
+            (Some(0.5), "a, b".into())
+        );
+        assert_eq!(columns[5].number(1), Some(90.5));
+        // the tip, for the tracker, is null
+        assert_eq!(columns[6].number(0), None);
+        // a second run does not replace it without --overwrite; its journal stays
+        let mut again = RecordingWriter::create(&dir.path().join("x.parquet"), 1, false).unwrap();
+        std::fs::copy(&path, dir.path().join("x.parquet")).unwrap();
+        again.write_row(0.0, "r", &[1.0, 2.0], &[1.0, 2.0]).unwrap();
+        let kept = again.journal_path().to_owned();
+        assert!(again.finish().is_err());
+        assert!(kept.exists());
     }
 
     #[test]

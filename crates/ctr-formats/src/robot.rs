@@ -217,6 +217,21 @@ impl AnyRobot {
     }
 }
 
+/// The tube number of a joint-like column name (`s3_mm`, `theta3_deg`).
+pub(crate) fn tube_of_column(name: &str) -> Option<usize> {
+    let digits = name
+        .strip_prefix('s')
+        .and_then(|r| r.strip_suffix("_mm"))
+        .or_else(|| {
+            name.strip_prefix("theta")
+                .and_then(|r| r.strip_suffix("_deg"))
+        })?;
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
 /// The joint column names of an `n`-tube robot in file order.
 pub fn joint_columns(n: usize) -> Vec<String> {
     (1..=n)

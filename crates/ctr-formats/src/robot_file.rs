@@ -318,97 +318,22 @@ impl RobotFile {
             .map_err(|(kind, _)| Error::new(Location::file(file), kind))
     }
 
+    /// Validates the tubes with the core, then `[model]`, `[limits]` and `[actuation]`
+    /// against them; an error carries the key path it is about.
     fn check(&self) -> Result<RobotSpec, (ErrorKind, Vec<Key>)> {
-        use Key::{Index, Name};
         let params: Vec<TubeParams<f64>> = self.tube.iter().map(TubeFile::params).collect();
         let robot = AnyRobot::new(&params).map_err(|e| {
             let path = match robot_error_key(&e) {
-                Some((tube, key)) => vec![Name("tube"), Index(tube - 1), Name(key)],
+                Some((tube, key)) => vec![Key::Name("tube"), Key::Index(tube - 1), Key::Name(key)],
                 None => vec![],
             };
             (ErrorKind::Robot(e), path)
         })?;
         let section = self.model.clone().unwrap_or_default();
-        let has_density = params.iter().all(|p| p.density_kg_m3.is_some());
-        if let Err((keys, message)) = section.effects.check(params.len(), has_density) {
-            let mut path = vec![Name("model"), Name("effects")];
-            path.extend(keys.into_iter().map(Name));
-            return Err((ErrorKind::Effect { message }, path));
-        }
-        if section.effects.gravity.is_some() && section.kind == ModelKind::Rigid {
-            return Err((
-                ErrorKind::Effect {
-                    message: "model.kind: \"rigid\" cannot be combined with \
-                              model.effects.gravity (the loaded solver models torsion); use \
-                              kind = \"torsion\""
-                        .into(),
-                },
-                vec![Name("model"), Name("kind")],
-            ));
-        }
-        let empirical = match &section.empirical {
-            None => None,
-            Some(e) => Some(Correction::check(e, params.len()).map_err(
-                |((term, key), message)| {
-                    let path = vec![
-                        Name("model"),
-                        Name("empirical"),
-                        Name("term"),
-                        Index(term),
-                        Name(key),
-                    ];
-                    (ErrorKind::Effect { message }, path)
-                },
-            )?),
-        };
-        let discrepancy = match &section.discrepancy {
-            None => None,
-            Some(d) => Some(
-                Discrepancy::check(d, params.len()).map_err(|(key, message)| {
-                    let path = vec![Name("model"), Name("discrepancy"), Name(key)];
-                    (ErrorKind::Effect { message }, path)
-                })?,
-            ),
-        };
-        let (stiffness, radius) = section.effects.scale_factors(params.len());
-        if let Err(e) = robot.scaled(&stiffness, &radius) {
-            return Err((ErrorKind::Robot(e), vec![Name("model"), Name("effects")]));
-        }
+        let (empirical, discrepancy) = check_model(&section, &robot, &params)?;
         let limits = match &self.limits {
             None => None,
-            Some(l) => {
-                if l.tube.len() != params.len() {
-                    return Err((
-                        ErrorKind::LimitsCount {
-                            expected: params.len(),
-                            found: l.tube.len(),
-                        },
-                        vec![Name("limits")],
-                    ));
-                }
-                for (i, t) in l.tube.iter().enumerate() {
-                    for (key, range) in [
-                        ("s_mm", t.s_mm),
-                        ("increment_mm", t.increment_mm),
-                        ("theta_deg", t.theta_deg),
-                    ] {
-                        if let Some([min, max]) = range {
-                            if !(min.is_finite() && max.is_finite() && min <= max) {
-                                return Err((
-                                    ErrorKind::BadLimit {
-                                        tube: i + 1,
-                                        key,
-                                        min,
-                                        max,
-                                    },
-                                    vec![Name("limits"), Name("tube"), Index(i), Name(key)],
-                                ));
-                            }
-                        }
-                    }
-                }
-                Some(l.tube.clone())
-            }
+            Some(l) => Some(check_limits(l, params.len())?),
         };
         let actuation = match &self.actuation {
             None => None,
@@ -429,6 +354,100 @@ impl RobotFile {
             actuation,
         })
     }
+}
+
+/// Checks `[model]` against the validated `robot` (of the tubes `params`): the
+/// effects, the kind beside them, the empirical correction (returned, checked) and the
+/// robot the scale factors make.
+#[allow(clippy::type_complexity)]
+fn check_model(
+    section: &ModelSection,
+    robot: &AnyRobot,
+    params: &[TubeParams<f64>],
+) -> Result<(Option<Correction>, Option<Discrepancy>), (ErrorKind, Vec<Key>)> {
+    use Key::{Index, Name};
+    let has_density = params.iter().all(|p| p.density_kg_m3.is_some());
+    if let Err((keys, message)) = section.effects.check(params.len(), has_density) {
+        let mut path = vec![Name("model"), Name("effects")];
+        path.extend(keys.into_iter().map(Name));
+        return Err((ErrorKind::Effect { message }, path));
+    }
+    if section.effects.gravity.is_some() && section.kind == ModelKind::Rigid {
+        return Err((
+            ErrorKind::Effect {
+                message: "model.kind: \"rigid\" cannot be combined with \
+                          model.effects.gravity (the loaded solver models torsion); use \
+                          kind = \"torsion\""
+                    .into(),
+            },
+            vec![Name("model"), Name("kind")],
+        ));
+    }
+    let empirical = match &section.empirical {
+        None => None,
+        Some(e) => Some(
+            Correction::check(e, params.len()).map_err(|((term, key), message)| {
+                let path = vec![
+                    Name("model"),
+                    Name("empirical"),
+                    Name("term"),
+                    Index(term),
+                    Name(key),
+                ];
+                (ErrorKind::Effect { message }, path)
+            })?,
+        ),
+    };
+    let discrepancy = match &section.discrepancy {
+        None => None,
+        Some(d) => Some(
+            Discrepancy::check(d, params.len()).map_err(|(key, message)| {
+                let path = vec![Name("model"), Name("discrepancy"), Name(key)];
+                (ErrorKind::Effect { message }, path)
+            })?,
+        ),
+    };
+    let (stiffness, radius) = section.effects.scale_factors(params.len());
+    if let Err(e) = robot.scaled(&stiffness, &radius) {
+        return Err((ErrorKind::Robot(e), vec![Name("model"), Name("effects")]));
+    }
+    Ok((empirical, discrepancy))
+}
+
+/// Checks `[limits]`: one table per tube of `n`, every range finite with min <= max.
+fn check_limits(l: &LimitsSection, n: usize) -> Result<Vec<TubeLimits>, (ErrorKind, Vec<Key>)> {
+    use Key::{Index, Name};
+    if l.tube.len() != n {
+        return Err((
+            ErrorKind::LimitsCount {
+                expected: n,
+                found: l.tube.len(),
+            },
+            vec![Name("limits")],
+        ));
+    }
+    for (i, t) in l.tube.iter().enumerate() {
+        for (key, range) in [
+            ("s_mm", t.s_mm),
+            ("increment_mm", t.increment_mm),
+            ("theta_deg", t.theta_deg),
+        ] {
+            if let Some([min, max]) = range {
+                if !(min.is_finite() && max.is_finite() && min <= max) {
+                    return Err((
+                        ErrorKind::BadLimit {
+                            tube: i + 1,
+                            key,
+                            min,
+                            max,
+                        },
+                        vec![Name("limits"), Name("tube"), Index(i), Name(key)],
+                    ));
+                }
+            }
+        }
+    }
+    Ok(l.tube.clone())
 }
 
 /// The tube number and TOML key a core error is about.

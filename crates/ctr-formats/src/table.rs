@@ -2,15 +2,21 @@
 //! file): header checks, located errors, numeric cells, and the raw fields of every row
 //! for carrying through.
 //!
-//! The file's bytes are kept as read and rows point into them: a line without a double
-//! quote is split at its commas right here (no copy, no allocation per row); a line
-//! with one is read by the csv crate, which handles quoting, and its fields are kept as
-//! a record. Both give exactly what the csv crate's reader gives (default settings,
-//! flexible rows): `\n`, `\r\n` and `\r` end records, empty lines are skipped, and
-//! quoted fields may hold commas, quotes and line breaks. A UTF-8 byte-order mark at the
-//! start (what spreadsheets write for "CSV UTF-8") is skipped, as the csv crate does.
+//! The file's bytes are kept as read and rows point into them: the records are found by
+//! [`Records`] (a line without a double quote is split at its commas right here, no copy,
+//! no allocation per row; a line with one is read by the csv crate and its fields are
+//! kept as a record). Both give exactly what the csv crate's reader gives (default
+//! settings, flexible rows). A UTF-8 byte-order mark at the start (what spreadsheets
+//! write for "CSV UTF-8") is skipped, as the csv crate does.
+//!
+//! The steps, each its own function, are shared with the streamed reader (`stream`):
+//! [`Header::read`] checks the header, [`RowTexts::collect`] finds the records of the
+//! rows in order, [`parse_rows`] turns their cells into checked numbers.
 
+use crate::columnar::{is_number_column, Column, Values};
 use crate::error::{Error, ErrorKind, Location};
+use crate::records::{not_text_error, plain, Record, Records};
+use std::ops::Range;
 
 /// Which columns a table needs.
 pub(crate) struct Columns<'a> {
@@ -19,6 +25,25 @@ pub(crate) struct Columns<'a> {
     /// A group of numeric columns that are all present or all absent (their values
     /// follow the required ones), and what the group is, for messages.
     pub optional: Option<(&'a [String], &'a str)>,
+}
+
+impl Columns<'_> {
+    /// All the columns, for messages: `a,b (and optionally c,d)`.
+    fn all(&self) -> String {
+        let mut s = self.required.join(",");
+        if let Some((group, _)) = self.optional {
+            s += &format!(" (and optionally {})", group.join(","));
+        }
+        s
+    }
+
+    /// True when `name` is one of the columns.
+    fn knows(&self, name: &str) -> bool {
+        self.required.iter().any(|r| r == name)
+            || self
+                .optional
+                .is_some_and(|(g, _)| g.iter().any(|r| r == name))
+    }
 }
 
 /// Where a row's fields are.
@@ -33,19 +58,6 @@ struct RowSpan {
 }
 
 const QUOTED: usize = usize::MAX;
-
-/// The UTF-8 encoding of U+FEFF, the byte-order mark spreadsheets and Windows editors
-/// put before the first byte of a "UTF-8" file.
-pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
-
-/// How many bytes of `data` a leading byte-order mark takes (0 or 3).
-pub(crate) fn bom_len(data: &[u8]) -> usize {
-    if data.starts_with(UTF8_BOM) {
-        UTF8_BOM.len()
-    } else {
-        0
-    }
-}
 
 /// Rows per chunk of the parallel number parsing.
 const PARSE_CHUNK_ROWS: usize = 4096;
@@ -62,7 +74,7 @@ macro_rules! table_rows {
 
         /// The header as found (untrimmed).
         pub fn header(&self) -> &[String] {
-            &self.table.header
+            &self.table.header.names
         }
 
         /// Number of data rows.
@@ -88,127 +100,329 @@ macro_rules! table_rows {
 }
 pub(crate) use table_rows;
 
-/// A CSV file read and checked: header, raw fields and numeric values of every row.
+/// A checked header: the names as found and where the numeric columns are.
 #[derive(Clone, Debug)]
-pub(crate) struct Table {
-    pub file: String,
-    pub header: Vec<String>,
-    /// 1-based line of the header
-    pub header_line: usize,
-    /// numeric values per row (required, then the optional group if present)
-    pub width: usize,
-    /// whether the optional group is present
+pub(crate) struct Header {
+    /// The names as found (untrimmed).
+    pub names: Vec<String>,
+    /// Where the header is: its line (a CSV file's), or the file (a Parquet file's).
+    pub location: Location,
+    /// The field index of each stored value (required, then the optional group).
+    pub index: Vec<usize>,
+    /// The column name of each stored value.
+    pub value_names: Vec<String>,
+    /// Whether the optional group is present.
     pub has_optional: bool,
-    data: Vec<u8>,
-    rows: Vec<RowSpan>,
-    quoted: Vec<csv::StringRecord>,
-    pub values: Vec<f64>,
 }
 
-/// One record found by [`Records`].
-enum Record {
-    /// `data[start..end]`, valid UTF-8 without quotes
-    Plain(usize, usize),
-    Quoted(csv::StringRecord),
-}
-
-/// Walks the records of a CSV file.
-struct Records<'a> {
-    data: &'a [u8],
-    file: &'a str,
-    pos: usize,
-    /// line of `pos`
-    line: usize,
-}
-
-impl Records<'_> {
-    /// The next record and the line it starts on.
-    fn next(&mut self) -> Result<Option<(Record, usize)>, Error> {
-        let data = self.data;
-        while self.pos < data.len() && matches!(data[self.pos], b'\n' | b'\r') {
-            self.line += usize::from(data[self.pos] == b'\n');
-            self.pos += 1;
+impl Header {
+    /// Reads the first record of `records` as the header and checks it: no duplicate
+    /// names, `header_check` on each trimmed name (after the duplicate check), every
+    /// required column present, the optional group whole or absent.
+    pub fn read(
+        records: &mut Records<'_>,
+        columns: &Columns<'_>,
+        header_check: impl Fn(&str) -> Result<(), ErrorKind>,
+    ) -> Result<Header, Error> {
+        let file = records.file;
+        if let Some(e) = not_text_error(file, &records.data[records.pos..]) {
+            return Err(e);
         }
-        if self.pos >= data.len() {
-            return Ok(None);
-        }
-        let start = self.pos;
-        let line = self.line;
-        let end = memchr::memchr2(b'\n', b'\r', &data[start..]).map_or(data.len(), |k| start + k);
-        let text = &data[start..end];
-        if memchr::memchr(b'"', text).is_some() {
-            // quoting (maybe over several lines): the csv crate reads this record
-            // a reader strips a byte order mark that opens its input, as the csv crate
-            // does at the start of a file only: a record after the first that opens
-            // with one gets a plain byte before it, taken off its first field again
-            let guard = usize::from(start > 0 && data[start..].starts_with(UTF8_BOM));
-            let input = std::io::Read::chain(&b"_"[..guard], &data[start..]);
-            let mut rdr = csv::ReaderBuilder::new()
-                .has_headers(false)
-                .flexible(true)
-                .from_reader(input);
-            let mut record = csv::StringRecord::new();
-            if let Err(e) = rdr.read_record(&mut record) {
-                let at = e
-                    .position()
-                    .map_or(0, |p| p.byte() as usize)
-                    .saturating_sub(guard);
-                let line = line + count_newlines(&data[start..(start + at).min(data.len())]);
-                return Err(csv_error(e, self.file, line));
-            }
-            if guard == 1 {
-                let mut fields = record.iter();
-                let first = fields.next().unwrap_or_default();
-                let mut kept = csv::StringRecord::new();
-                kept.push_field(first.strip_prefix('_').unwrap_or(first));
-                fields.for_each(|f| kept.push_field(f));
-                record = kept;
-            }
-            let consumed = (rdr.position().byte() as usize)
-                .saturating_sub(guard)
-                .max(1);
-            let stop = (start + consumed).min(data.len());
-            self.line += count_newlines(&data[start..stop]);
-            self.pos = stop;
-            return Ok(Some((Record::Quoted(record), line)));
-        }
-        if let Err(e) = std::str::from_utf8(text) {
-            let field = 1 + memchr::memchr_iter(b',', &text[..e.valid_up_to()]).count();
+        let Some((first, line)) = records.next()? else {
             return Err(Error::new(
-                Location::line(self.file, line),
-                ErrorKind::Csv {
-                    message: format!("field {field}: not valid UTF-8 text"),
+                Location::file(file),
+                ErrorKind::EmptyFile {
+                    expected: columns.all(),
                 },
             ));
+        };
+        let names: Vec<String> = match &first {
+            Record::Plain(a, b) => plain(records.data, *a, *b)
+                .split(',')
+                .map(str::to_owned)
+                .collect(),
+            Record::Quoted(r) => r.iter().map(str::to_owned).collect(),
+        };
+        Header::check(names, Location::line(file, line), columns, header_check)
+    }
+
+    /// Checks the header `names` found at `location` (see [`Header::read`]).
+    pub fn check(
+        names: Vec<String>,
+        location: Location,
+        columns: &Columns<'_>,
+        header_check: impl Fn(&str) -> Result<(), ErrorKind>,
+    ) -> Result<Header, Error> {
+        let at = |kind: ErrorKind| Error::new(location.clone(), kind);
+        let trimmed: Vec<&str> = names.iter().map(|h| h.trim()).collect();
+        for (i, name) in trimmed.iter().enumerate() {
+            if trimmed[..i].contains(name) {
+                let name = (*name).to_owned();
+                return Err(at(ErrorKind::DuplicateColumn { name }));
+            }
+            header_check(name).map_err(at)?;
         }
-        self.pos = end;
-        Ok(Some((Record::Plain(start, end), line)))
+        let missing = |want: &String, needs: String| {
+            let unknown = trimmed.iter().filter(|h| !columns.knows(h));
+            at(ErrorKind::MissingColumn {
+                name: want.clone(),
+                similar: closest(want, unknown).map(str::to_owned),
+                required: needs,
+            })
+        };
+        let mut index = Vec::with_capacity(columns.required.len() + 4);
+        for want in columns.required {
+            match trimmed.iter().position(|h| h == want) {
+                Some(i) => index.push(i),
+                None => return Err(missing(want, columns.all())),
+            }
+        }
+        let mut value_names = columns.required.to_vec();
+        let mut has_optional = false;
+        if let Some((group, what)) = columns.optional {
+            let found: Vec<Option<usize>> = group
+                .iter()
+                .map(|want| trimmed.iter().position(|h| h == want))
+                .collect();
+            if found.iter().any(Option::is_some) {
+                if let Some(k) = found.iter().position(Option::is_none) {
+                    let needs = format!("all of {} for {what}, or none", group.join(","));
+                    return Err(missing(&group[k], needs));
+                }
+                index.extend(found.into_iter().flatten());
+                value_names.extend_from_slice(group);
+                has_optional = true;
+            }
+        }
+        Ok(Header {
+            names,
+            location,
+            index,
+            value_names,
+            has_optional,
+        })
+    }
+
+    /// Numeric values per row.
+    pub fn width(&self) -> usize {
+        self.index.len()
+    }
+
+    /// The header's line (1 for a file without lines).
+    pub fn line(&self) -> usize {
+        self.location.line.unwrap_or(1)
     }
 }
 
-fn count_newlines(bytes: &[u8]) -> usize {
-    memchr::memchr_iter(b'\n', bytes).count()
+/// The records of rows found in order: where each row's text is (in the bytes walked)
+/// and the quoted ones read.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct RowTexts {
+    rows: Vec<RowSpan>,
+    quoted: Vec<csv::StringRecord>,
 }
 
-fn csv_error(e: csv::Error, file: &str, line: usize) -> Error {
-    let kind = match e.into_kind() {
-        csv::ErrorKind::Io(source) => ErrorKind::Io {
-            action: "read",
-            source,
-        },
-        csv::ErrorKind::Utf8 { err, .. } => ErrorKind::Csv {
-            message: format!("field {}: not valid UTF-8 text", err.field() + 1),
-        },
-        other => ErrorKind::Csv {
-            message: super::toml_doc::one_line(&format!("{other:?}")),
-        },
-    };
-    Error::new(Location::line(file, line), kind)
+impl RowTexts {
+    /// The records of `records` up to its end, or up to a CSV error (returned beside
+    /// the rows before it, whose own errors come first). `expect` rows are room made
+    /// in advance.
+    pub fn collect(records: &mut Records<'_>, expect: usize) -> (RowTexts, Option<Error>) {
+        let mut texts = RowTexts {
+            rows: Vec::with_capacity(expect),
+            quoted: Vec::new(),
+        };
+        let error = loop {
+            match records.next() {
+                Ok(Some((Record::Plain(start, end), line))) => {
+                    texts.rows.push(RowSpan { start, end, line })
+                }
+                Ok(Some((Record::Quoted(r), line))) => {
+                    texts.rows.push(RowSpan {
+                        start: QUOTED,
+                        end: texts.quoted.len(),
+                        line,
+                    });
+                    texts.quoted.push(r);
+                }
+                Ok(None) => break None,
+                Err(e) => break Some(e),
+            }
+        };
+        (texts, error)
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// The 1-based line where row `r` starts.
+    pub fn line(&self, r: usize) -> usize {
+        self.rows[r].line
+    }
+
+    /// Row `r`'s text (in `data`, the bytes walked), and each cell's byte range in it
+    /// in `cells`.
+    pub fn row_text<'a>(
+        &'a self,
+        data: &'a [u8],
+        r: usize,
+        cells: &mut Vec<(usize, usize)>,
+    ) -> &'a str {
+        cells.clear();
+        let s = self.rows[r];
+        if s.start == QUOTED {
+            let rec = &self.quoted[s.end];
+            cells.extend(
+                (0..rec.len())
+                    .filter_map(|i| rec.range(i))
+                    .map(|g| (g.start, g.end)),
+            );
+            rec.as_slice()
+        } else {
+            let text = plain(data, s.start, s.end);
+            let mut from = 0;
+            for comma in memchr::memchr_iter(b',', text.as_bytes()) {
+                cells.push((from, comma));
+                from = comma + 1;
+            }
+            cells.push((from, text.len()));
+            text
+        }
+    }
+
+    /// Row `r`'s fields (in `data`, the bytes walked).
+    pub fn fields<'a>(&'a self, data: &'a [u8], r: usize) -> Fields<'a> {
+        let s = self.rows[r];
+        if s.start == QUOTED {
+            Fields::Quoted(self.quoted[s.end].iter())
+        } else {
+            Fields::Plain(plain(data, s.start, s.end).split(','))
+        }
+    }
+
+    /// Row `r` as CSV text ready to write: for a row read without quotes, its line
+    /// as it was (what writing its fields with the csv crate's quoting gives, since
+    /// none needs quotes); `None` for a row that had quotes.
+    pub fn plain_line<'a>(&self, data: &'a [u8], r: usize) -> Option<&'a str> {
+        let s = self.rows[r];
+        (s.start != QUOTED).then(|| plain(data, s.start, s.end))
+    }
 }
 
-/// The text of `data[start..end]`, checked to be UTF-8 by [`Records`].
-fn plain(data: &[u8], start: usize, end: usize) -> &str {
-    std::str::from_utf8(&data[start..end]).unwrap_or_default()
+/// Parses the rows `range` of `texts` (in `data`): every row has the header's
+/// `fields` fields, its numeric cells are finite numbers, and `row_check` accepts them
+/// (with the row's line); their values are appended to `out`, row after row. Stops at
+/// the first error. `scratch` is room for a row's cells and values.
+pub(crate) fn parse_rows(
+    texts: &RowTexts,
+    data: &[u8],
+    range: Range<usize>,
+    header: &Header,
+    file: &str,
+    row_check: &(impl Fn(&[f64], usize) -> Result<(), Error> + Sync),
+    scratch: &mut (Vec<(usize, usize)>, Vec<f64>),
+    out: &mut Vec<f64>,
+) -> Result<(), Error> {
+    let (cells, row) = scratch;
+    let n_fields = header.names.len();
+    for r in range {
+        let line = texts.line(r);
+        let at = |kind: ErrorKind| Error::new(Location::line(file, line), kind);
+        let text = texts.row_text(data, r, cells);
+        if cells.len() != n_fields {
+            return Err(at(ErrorKind::RaggedRow {
+                found: cells.len(),
+                expected: n_fields,
+            }));
+        }
+        row.clear();
+        for (k, &i) in header.index.iter().enumerate() {
+            let cell = &text[cells[i].0..cells[i].1];
+            let column = || header.value_names[k].clone();
+            let value: f64 = cell.trim().parse().map_err(|_| {
+                at(ErrorKind::NotANumber {
+                    column: column(),
+                    found: cell.to_owned(),
+                })
+            })?;
+            if !value.is_finite() {
+                return Err(at(ErrorKind::NotFinite {
+                    column: column(),
+                    found: cell.to_owned(),
+                }));
+            }
+            row.push(value);
+        }
+        row_check(row, line)?;
+        out.extend_from_slice(row);
+    }
+    Ok(())
+}
+
+/// The rows of `texts` (in `data`, with the numeric `values` read from them) as columns
+/// of a Parquet output, one per header column: the numeric columns read (doubles), the
+/// other columns the formats contract fills with numbers ([`is_number_column`]) as
+/// doubles (an empty cell a null, anything but a number refused with its line), every
+/// other column as text.
+pub(crate) fn csv_columns(
+    texts: &RowTexts,
+    data: &[u8],
+    header: &Header,
+    values: &[f64],
+    file: &str,
+) -> Result<Vec<Column>, Error> {
+    let n = texts.len();
+    let width = header.width();
+    let mut out: Vec<Column> = header
+        .names
+        .iter()
+        .enumerate()
+        .map(
+            |(i, name)| match header.index.iter().position(|&j| j == i) {
+                Some(k) => Column::doubles((0..n).map(|r| values[r * width + k]).collect()),
+                None if is_number_column(name.trim()) => Column {
+                    values: Values::F64(Vec::with_capacity(n)),
+                    valid: Some(Vec::with_capacity(n)),
+                },
+                None => Column {
+                    values: Values::Bytes(Vec::with_capacity(n)),
+                    valid: None,
+                },
+            },
+        )
+        .collect();
+    for r in 0..n {
+        for ((i, cell), column) in texts.fields(data, r).enumerate().zip(&mut out) {
+            match (&mut column.values, &mut column.valid) {
+                (Values::F64(v), Some(valid)) => {
+                    let number = number_cell(cell).map_err(|()| {
+                        Error::new(
+                            Location::line(file, texts.line(r)),
+                            ErrorKind::NotANumber {
+                                column: header.names[i].trim().to_owned(),
+                                found: cell.to_owned(),
+                            },
+                        )
+                    })?;
+                    v.push(number.unwrap_or_default());
+                    valid.push(number.is_some());
+                }
+                (Values::Bytes(v), _) => v.push(cell.into()),
+                _ => {}
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// A cell of a column of numbers: a number, `None` when empty, `Err` otherwise.
+fn number_cell(cell: &str) -> Result<Option<f64>, ()> {
+    let t = cell.trim();
+    if t.is_empty() {
+        return Ok(None);
+    }
+    t.parse().map(Some).map_err(|_| ())
 }
 
 /// The fields of one row.
@@ -227,6 +441,16 @@ impl<'a> Iterator for Fields<'a> {
     }
 }
 
+/// A CSV file read and checked: header, raw fields and numeric values of every row.
+#[derive(Clone, Debug)]
+pub(crate) struct Table {
+    pub file: String,
+    pub header: Header,
+    data: Vec<u8>,
+    texts: RowTexts,
+    pub values: Vec<f64>,
+}
+
 impl Table {
     /// Reads `data` (a whole CSV file; `file` names it in errors). `header_check` sees
     /// each trimmed header name in turn (after the duplicate check) and may refuse it;
@@ -241,253 +465,105 @@ impl Table {
         row_check: impl Fn(&[f64], usize) -> Result<(), Error> + Sync,
         threads: usize,
     ) -> Result<Table, Error> {
-        let required = columns.required;
-        let at = |line: usize, kind: ErrorKind| Error::new(Location::line(file, line), kind);
-        let all_columns = || {
-            let mut s = required.join(",");
-            if let Some((group, _)) = columns.optional {
-                s += &format!(" (and optionally {})", group.join(","));
-            }
-            s
-        };
-        let mut records = Records {
-            data: &data,
-            file,
-            pos: bom_len(&data),
-            line: 1,
-        };
-        let Some((first, header_line)) = records.next()? else {
-            return Err(Error::new(
-                Location::file(file),
-                ErrorKind::EmptyFile {
-                    expected: all_columns(),
-                },
-            ));
-        };
-        let header: Vec<String> = match &first {
-            Record::Plain(a, b) => plain(&data, *a, *b).split(',').map(str::to_owned).collect(),
-            Record::Quoted(r) => r.iter().map(str::to_owned).collect(),
-        };
-        let names: Vec<&str> = header.iter().map(|h| h.trim()).collect();
-        for (i, name) in names.iter().enumerate() {
-            if names[..i].contains(name) {
-                return Err(at(
-                    header_line,
-                    ErrorKind::DuplicateColumn {
-                        name: (*name).to_owned(),
-                    },
-                ));
-            }
-            header_check(name).map_err(|kind| at(header_line, kind))?;
-        }
-        let known = |h: &str| {
-            required.iter().any(|r| r == h)
-                || columns
-                    .optional
-                    .is_some_and(|(g, _)| g.iter().any(|r| r == h))
-        };
-        let missing = |want: &String, needs: String| {
-            let unknown = names.iter().filter(|h| !known(h));
-            at(
-                header_line,
-                ErrorKind::MissingColumn {
-                    name: want.clone(),
-                    similar: closest(want, unknown).map(str::to_owned),
-                    required: needs,
-                },
-            )
-        };
-        let mut index = Vec::with_capacity(required.len() + 4);
-        for want in required {
-            match names.iter().position(|h| h == want) {
-                Some(i) => index.push(i),
-                None => return Err(missing(want, all_columns())),
-            }
-        }
-        let mut has_optional = false;
-        if let Some((group, what)) = columns.optional {
-            let found: Vec<Option<usize>> = group
-                .iter()
-                .map(|want| names.iter().position(|h| h == want))
-                .collect();
-            if found.iter().any(Option::is_some) {
-                if let Some(k) = found.iter().position(Option::is_none) {
-                    return Err(missing(
-                        &group[k],
-                        format!("all of {} for {what}, or none", group.join(",")),
-                    ));
-                }
-                index.extend(found.into_iter().flatten());
-                has_optional = true;
-            }
-        }
-        let names_of: Vec<&String> = required
-            .iter()
-            .chain(
-                columns
-                    .optional
-                    .filter(|_| has_optional)
-                    .map_or(&[][..], |(g, _)| g),
-            )
-            .collect();
-
-        let width = index.len();
-        let n_fields = header.len();
+        let mut records = Records::new(&data, file);
+        let header = Header::read(&mut records, columns, header_check)?;
         // a guess from the header line's length, to avoid most regrowing
         let rows_guess = data.len() / (memchr::memchr(b'\n', &data).unwrap_or(64) + 1);
-        // pass 1, in order: where every record is (a CSV error ends the pass; the rows
-        // before it are still checked, as an error there comes first)
-        let mut rows = Vec::with_capacity(rows_guess);
-        let mut quoted = Vec::new();
-        let syntax_error = loop {
-            match records.next() {
-                Ok(Some((Record::Plain(start, end), line))) => {
-                    rows.push(RowSpan { start, end, line })
-                }
-                Ok(Some((Record::Quoted(r), line))) => {
-                    rows.push(RowSpan {
-                        start: QUOTED,
-                        end: quoted.len(),
-                        line,
-                    });
-                    quoted.push(r);
-                }
-                Ok(None) => break None,
-                Err(e) => break Some(e),
-            }
-        };
-        let mut table = Table {
-            file: file.to_owned(),
-            header,
-            header_line,
-            width,
-            has_optional,
-            data,
-            rows,
-            quoted,
-            values: Vec::new(),
-        };
-        // pass 2, in parallel chunks: fields, numbers, row checks
-        let mut values = Vec::with_capacity(table.rows.len() * width);
-        let mut first_error = None;
-        let t = &table;
-        crate::parallel::for_each_chunk(
-            t.rows.len(),
-            PARSE_CHUNK_ROWS,
-            threads,
-            &(),
-            || (Vec::with_capacity(n_fields), Vec::with_capacity(width)),
-            |(cells, row): &mut (Vec<(usize, usize)>, Vec<f64>), range| {
-                let mut out = Vec::with_capacity(range.len() * width);
-                for r in range {
-                    let line = t.rows[r].line;
-                    let text = t.row_text(r, cells);
-                    if cells.len() != n_fields {
-                        return Err(at(
-                            line,
-                            ErrorKind::RaggedRow {
-                                found: cells.len(),
-                                expected: n_fields,
-                            },
-                        ));
-                    }
-                    row.clear();
-                    for (k, &i) in index.iter().enumerate() {
-                        let cell = &text[cells[i].0..cells[i].1];
-                        let value: f64 = cell.trim().parse().map_err(|_| {
-                            at(
-                                line,
-                                ErrorKind::NotANumber {
-                                    column: names_of[k].clone(),
-                                    found: cell.to_owned(),
-                                },
-                            )
-                        })?;
-                        if !value.is_finite() {
-                            return Err(at(
-                                line,
-                                ErrorKind::NotFinite {
-                                    column: names_of[k].clone(),
-                                    found: cell.to_owned(),
-                                },
-                            ));
-                        }
-                        row.push(value);
-                    }
-                    row_check(row, line)?;
-                    out.extend_from_slice(row);
-                }
-                Ok(out)
-            },
-            |_, chunk| match chunk {
-                Ok(v) => {
-                    values.extend_from_slice(&v);
-                    true
-                }
-                Err(e) => {
-                    first_error = Some(e);
-                    false
-                }
-            },
-        );
-        if let Some(e) = first_error.or(syntax_error) {
+        // in order: where every record is (a CSV error ends the walk; the rows before
+        // it are still checked, as an error there comes first)
+        let (texts, syntax_error) = RowTexts::collect(&mut records, rows_guess);
+        let values = parse_in_parallel(&texts, &data, &header, file, &row_check, threads)?;
+        if let Some(e) = syntax_error {
             return Err(e);
         }
-        table.values = values;
-        Ok(table)
-    }
-
-    /// Row `r`'s text, and each cell's byte range in it in `cells`.
-    fn row_text<'a>(&'a self, r: usize, cells: &mut Vec<(usize, usize)>) -> &'a str {
-        cells.clear();
-        let s = self.rows[r];
-        if s.start == QUOTED {
-            let rec = &self.quoted[s.end];
-            cells.extend(
-                (0..rec.len())
-                    .filter_map(|i| rec.range(i))
-                    .map(|g| (g.start, g.end)),
-            );
-            rec.as_slice()
-        } else {
-            let text = plain(&self.data, s.start, s.end);
-            let mut from = 0;
-            for comma in memchr::memchr_iter(b',', text.as_bytes()) {
-                cells.push((from, comma));
-                from = comma + 1;
-            }
-            cells.push((from, text.len()));
-            text
-        }
+        Ok(Table {
+            file: file.to_owned(),
+            header,
+            data,
+            texts,
+            values,
+        })
     }
 
     pub fn len(&self) -> usize {
-        self.rows.len()
+        self.texts.len()
     }
 
     pub fn line(&self, row: usize) -> usize {
-        self.rows[row].line
+        self.texts.line(row)
     }
 
     pub fn fields(&self, row: usize) -> Fields<'_> {
-        let s = self.rows[row];
-        if s.start == QUOTED {
-            Fields::Quoted(self.quoted[s.end].iter())
-        } else {
-            Fields::Plain(plain(&self.data, s.start, s.end).split(','))
-        }
+        self.texts.fields(&self.data, row)
     }
 
-    /// Row `row` as CSV text ready to write: for a row read without quotes, its line
-    /// as it was (what writing its fields with the csv crate's quoting gives, since
-    /// none needs quotes); `None` for a row that had quotes.
+    /// The rows as columns of a Parquet output (see [`csv_columns`]).
+    pub fn columns(&self) -> Result<Vec<Column>, Error> {
+        csv_columns(
+            &self.texts,
+            &self.data,
+            &self.header,
+            &self.values,
+            &self.file,
+        )
+    }
+
+    /// Row `row` as CSV text ready to write (see [`RowTexts::plain_line`]).
     pub fn plain_line(&self, row: usize) -> Option<&str> {
-        let s = self.rows[row];
-        (s.start != QUOTED).then(|| plain(&self.data, s.start, s.end))
+        self.texts.plain_line(&self.data, row)
     }
 
     pub fn values(&self, row: usize) -> &[f64] {
-        &self.values[row * self.width..(row + 1) * self.width]
+        let width = self.header.width();
+        &self.values[row * width..(row + 1) * width]
+    }
+}
+
+/// The values of every row of `texts`, parsed in chunks on `threads` threads (0 = all
+/// cores); the error is the first in the file.
+fn parse_in_parallel(
+    texts: &RowTexts,
+    data: &[u8],
+    header: &Header,
+    file: &str,
+    row_check: &(impl Fn(&[f64], usize) -> Result<(), Error> + Sync),
+    threads: usize,
+) -> Result<Vec<f64>, Error> {
+    let width = header.width();
+    let mut values = Vec::with_capacity(texts.len() * width);
+    let mut first_error = None;
+    crate::parallel::for_each_chunk(
+        texts.len(),
+        PARSE_CHUNK_ROWS,
+        threads,
+        &(),
+        || {
+            (
+                Vec::with_capacity(header.names.len()),
+                Vec::with_capacity(width),
+            )
+        },
+        |scratch, range| {
+            let mut out = Vec::with_capacity(range.len() * width);
+            parse_rows(
+                texts, data, range, header, file, row_check, scratch, &mut out,
+            )
+            .map(|()| out)
+        },
+        |_, chunk| match chunk {
+            Ok(v) => {
+                values.extend_from_slice(&v);
+                true
+            }
+            Err(e) => {
+                first_error = Some(e);
+                false
+            }
+        },
+    );
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(values),
     }
 }
 
@@ -599,62 +675,5 @@ mod tests {
         assert_eq!(t.fields(2).collect::<Vec<_>>(), ["3", "z"]);
         assert_eq!(t.values, [1.0, 2.0, 3.0]);
         assert_eq!((t.line(0), t.line(1), t.line(2)), (2, 4, 5));
-    }
-
-    /// The same records, fields and errors as the csv crate's reader.
-    #[test]
-    fn records_are_the_csv_crates() {
-        let cases: &[&[u8]] = &[
-            b"a,b\n1,2\n",
-            b"a,b\r\n1,2\r\n\r\n3,4",
-            b"a,b\r1,2\r3,4\n",
-            b"a,\"b\nc\",d\n1,\"2\"\"x\",3\n\n\"q\"r,s,t\n",
-            b"a,b\n\"unterminated,1\n2,3\n",
-            b"  a , b \n 1,2 \n,\n",
-            b"a,b\n\xff,1\n",
-            b"a,b\n1,\"\xff\"\n",
-            b"x\n\n\n\"\"\n \n",
-        ];
-        for data in cases {
-            let mut ours = Vec::new();
-            let mut r = Records {
-                data,
-                file: "f",
-                pos: 0,
-                line: 1,
-            };
-            let ours_err = loop {
-                match r.next() {
-                    Ok(Some((Record::Plain(a, b), _))) => ours.push(
-                        plain(data, a, b)
-                            .split(',')
-                            .map(str::to_owned)
-                            .collect::<Vec<_>>(),
-                    ),
-                    Ok(Some((Record::Quoted(rec), _))) => {
-                        ours.push(rec.iter().map(str::to_owned).collect())
-                    }
-                    Ok(None) => break None,
-                    Err(e) => break Some(e.to_string()),
-                }
-            };
-            let mut theirs = Vec::new();
-            let mut rdr = csv::ReaderBuilder::new()
-                .has_headers(false)
-                .flexible(true)
-                .from_reader(*data);
-            let mut theirs_err = None;
-            for rec in rdr.records() {
-                match rec {
-                    Ok(rec) => theirs.push(rec.iter().map(str::to_owned).collect::<Vec<_>>()),
-                    Err(e) => {
-                        theirs_err = Some(e);
-                        break;
-                    }
-                }
-            }
-            assert_eq!(ours, theirs, "{:?}", String::from_utf8_lossy(data));
-            assert_eq!(ours_err.is_some(), theirs_err.is_some(), "{ours_err:?}");
-        }
     }
 }

@@ -4,12 +4,16 @@
 //! other columns carried through as the raw strings they were.
 
 use super::csvout::write_float;
-use super::table::{read_all, read_path, table_rows, Columns, Table};
-use super::tips::{write_carried, Carried};
+use super::table::{read_all, read_path, Columns, Header, Table};
+use super::tips::{write_carried, Carried, CarriedColumns};
+use crate::columnar::read::ParquetReader;
+use crate::columnar::table::ParquetTable;
+use crate::columnar::{is_parquet, Batch, Column, ColumnType, MAGIC};
 use crate::error::{Error, ErrorKind, Location};
 use crate::robot::{canonical_quaternion, joint_columns};
 use ctr_core::Frame;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use std::borrow::Cow;
 use std::io::Read;
 use std::path::Path;
 
@@ -113,14 +117,19 @@ pub struct IkRow<'a> {
 /// kept for carrying through.
 #[derive(Clone, Debug)]
 pub struct TargetTable {
-    table: Table,
+    kind: TargetKind,
+}
+
+#[derive(Clone, Debug)]
+enum TargetKind {
+    Csv(Table),
+    Parquet(ParquetTable),
 }
 
 impl TargetTable {
-    table_rows!();
-
-    /// Reads CSV from `reader`; `file` names it in errors. With `position_only`, the
-    /// orientation columns, if any, are not read (position targets).
+    /// Reads CSV from `reader` (or Parquet, when the bytes are a Parquet file's);
+    /// `file` names it in errors. With `position_only`, the orientation columns, if
+    /// any, are not read (position targets).
     ///
     /// ```
     /// use ctr_formats::TargetTable;
@@ -133,19 +142,20 @@ impl TargetTable {
         TargetTable::from_bytes(data, file, position_only, 1)
     }
 
-    /// Reads CSV from a whole file's bytes; the numbers are parsed and checked on
-    /// `threads` threads (0 = all cores), the error reported being the first in the file.
+    /// Reads CSV from a whole file's bytes (or Parquet, when they are a Parquet
+    /// file's); the numbers are parsed and checked on `threads` threads (0 = all
+    /// cores), the error reported being the first in the file.
     pub fn from_bytes(
         data: Vec<u8>,
         file: &str,
         position_only: bool,
         threads: usize,
     ) -> Result<Self, Error> {
-        let required: Vec<String> = TARGET_COLUMNS.iter().map(|s| (*s).to_owned()).collect();
-        let orientation: Vec<String> = ORIENTATION_COLUMNS
-            .iter()
-            .map(|s| (*s).to_owned())
-            .collect();
+        if data.starts_with(MAGIC) {
+            let reader = ParquetReader::from_bytes(data, file)?;
+            return Self::parquet(reader, position_only);
+        }
+        let (required, orientation) = target_columns();
         let columns = Columns {
             required: &required,
             optional: (!position_only).then_some((&orientation[..], "an orientation target")),
@@ -156,23 +166,107 @@ impl TargetTable {
                 .map_err(|kind| Error::new(Location::line(file, line), kind))
         };
         let table = Table::read(data, file, &columns, |_| Ok(()), row_check, threads)?;
-        Ok(TargetTable { table })
+        Ok(TargetTable {
+            kind: TargetKind::Csv(table),
+        })
     }
 
-    /// Reads a target file; errors name the path as given.
+    fn parquet(reader: ParquetReader, position_only: bool) -> Result<Self, Error> {
+        let file = reader.file().to_owned();
+        let (required, orientation) = target_columns();
+        let columns = Columns {
+            required: &required,
+            optional: (!position_only).then_some((&orientation[..], "an orientation target")),
+        };
+        let row_check = |v: &[f64], row: usize| {
+            IkTarget::from_values(v)
+                .map(drop)
+                .map_err(|kind| Error::new(Location::row(&file, row), kind))
+        };
+        let table = ParquetTable::read(reader, &columns, |_| Ok(()), row_check)?;
+        Ok(TargetTable {
+            kind: TargetKind::Parquet(table),
+        })
+    }
+
+    /// Reads a target file; errors name the path as given. Parquet when its name ends
+    /// in `.parquet` or its bytes start as a Parquet file's; else CSV.
     pub fn from_path(path: &Path, position_only: bool) -> Result<Self, Error> {
+        if is_parquet(path) {
+            return Self::parquet(ParquetReader::open(path)?, position_only);
+        }
         let (file, data) = read_path(path)?;
         TargetTable::from_bytes(data, &file, position_only, 1)
     }
 
+    /// The file name used in errors.
+    pub fn file(&self) -> &str {
+        match &self.kind {
+            TargetKind::Csv(t) => &t.file,
+            TargetKind::Parquet(t) => &t.file,
+        }
+    }
+
+    /// The header as found (a CSV file's names untrimmed; a Parquet file's columns).
+    pub fn header(&self) -> &[String] {
+        &self.head().names
+    }
+
+    fn head(&self) -> &Header {
+        match &self.kind {
+            TargetKind::Csv(t) => &t.header,
+            TargetKind::Parquet(t) => &t.header,
+        }
+    }
+
+    /// Number of data rows.
+    pub fn len(&self) -> usize {
+        match &self.kind {
+            TargetKind::Csv(t) => t.len(),
+            TargetKind::Parquet(t) => t.len(),
+        }
+    }
+
+    /// True when the file has a header only.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Where data row `row` (0-based) is: its 1-based line in a CSV file, or its
+    /// 1-based row in a Parquet file ([`TargetTable::is_rows`]).
+    pub fn line(&self, row: usize) -> usize {
+        match &self.kind {
+            TargetKind::Csv(t) => t.line(row),
+            TargetKind::Parquet(_) => row + 1,
+        }
+    }
+
+    /// True when [`line`](Self::line) gives rows of a Parquet file, not lines.
+    pub fn is_rows(&self) -> bool {
+        matches!(self.kind, TargetKind::Parquet(_))
+    }
+
+    /// The raw fields of data row `row`, all columns in header order (a Parquet file's
+    /// cells as CSV writes them).
+    pub fn fields(&self, row: usize) -> Box<dyn Iterator<Item = Cow<'_, str>> + '_> {
+        match &self.kind {
+            TargetKind::Csv(t) => Box::new(t.fields(row).map(Cow::Borrowed)),
+            TargetKind::Parquet(t) => Box::new(t.columns.iter().map(move |c| c.text(row))),
+        }
+    }
+
     /// True when the targets are poses (the file has `qw,qx,qy,qz` and they are read).
     pub fn has_orientation(&self) -> bool {
-        self.table.has_optional
+        self.head().has_optional
     }
 
     /// The target of data row `row` (its quaternion normalised).
     pub fn target(&self, row: usize) -> IkTarget {
-        IkTarget::from_values(self.table.values(row))
+        let values = match &self.kind {
+            TargetKind::Csv(t) => t.values(row),
+            TargetKind::Parquet(t) => t.values(row),
+        };
+        IkTarget::from_values(values)
             .expect("every row passed IkTarget::from_values when the file was read")
     }
 
@@ -187,21 +281,64 @@ impl TargetTable {
         row: usize,
         keep: &'a [usize],
     ) -> Carried<'a, impl Iterator<Item = &'a str>> {
+        let table = match &self.kind {
+            TargetKind::Csv(t) => t,
+            TargetKind::Parquet(t) => {
+                return Carried::Columns(CarriedColumns {
+                    columns: &t.columns,
+                    keep: Some(keep),
+                    row,
+                })
+            }
+        };
         let mut next = 0;
-        Carried::Fields(
-            self.table
-                .fields(row)
-                .enumerate()
-                .filter_map(move |(i, f)| {
-                    if keep.get(next) == Some(&i) {
-                        next += 1;
-                        Some(f)
-                    } else {
-                        None
-                    }
-                }),
-        )
+        Carried::Fields(table.fields(row).enumerate().filter_map(move |(i, f)| {
+            if keep.get(next) == Some(&i) {
+                next += 1;
+                Some(f)
+            } else {
+                None
+            }
+        }))
     }
+
+    /// The columns at the indices `keep` of every row, for a Parquet output: their
+    /// types and the rows. A Parquet file's keep their own type; a CSV file's are made
+    /// as [`ColumnType::carried_csv`] says (a cell that is not the number its column
+    /// wants is refused with its line).
+    pub fn carried_columns(&self, keep: &[usize]) -> Result<(Vec<ColumnType>, Batch), Error> {
+        let (types, columns): (Vec<ColumnType>, Vec<Column>) = match &self.kind {
+            TargetKind::Csv(t) => {
+                let mut all = t.columns()?;
+                let header = &t.header;
+                keep.iter()
+                    .map(|&i| {
+                        let name = &header.names[i];
+                        let ty = if header.index.contains(&i) {
+                            ColumnType::double(name)
+                        } else {
+                            ColumnType::carried_csv(name)
+                        };
+                        (
+                            ty,
+                            std::mem::replace(&mut all[i], Column::doubles(Vec::new())),
+                        )
+                    })
+                    .unzip()
+            }
+            TargetKind::Parquet(t) => keep
+                .iter()
+                .map(|&i| (ColumnType(t.types[i].clone()), t.columns[i].clone()))
+                .unzip(),
+        };
+        Ok((types, Batch(columns)))
+    }
+}
+
+/// The target columns: the required position, the optional orientation.
+fn target_columns() -> (Vec<String>, Vec<String>) {
+    let owned = |c: &[&str]| c.iter().map(|s| (*s).to_owned()).collect();
+    (owned(&TARGET_COLUMNS), owned(&ORIENTATION_COLUMNS))
 }
 
 /// The columns `ctr-cli ik` adds after the input's: the joints (file units), the tip
@@ -271,6 +408,61 @@ pub fn ik_output_columns(input: &[String], n_tubes: usize, pose: bool) -> IkOutp
     IkOutputColumns { carried, header }
 }
 
+/// The types of [`ik_columns`] for a Parquet output: doubles, `status` text.
+///
+/// ```
+/// let t = ctr_formats::ik_column_types(1, false);
+/// assert_eq!(t.last().unwrap().name(), "status");
+/// assert_eq!(t.len(), ctr_formats::ik_columns(1, false).len());
+/// ```
+pub fn ik_column_types(n_tubes: usize, pose: bool) -> Vec<ColumnType> {
+    ik_columns(n_tubes, pose)
+        .iter()
+        .map(|c| {
+            if c == "status" {
+                ColumnType::text(c)
+            } else {
+                ColumnType::double(c)
+            }
+        })
+        .collect()
+}
+
+/// The values of IK output rows as the columns of [`ik_column_types`] (what
+/// [`write_ik_row`] writes after the carried input).
+pub fn ik_batch(rows: &[IkRow<'_>], pose: bool) -> Batch {
+    let mut batch = Batch::default();
+    let width = rows.first().map_or(0, |r| r.joints.len());
+    for j in 0..width {
+        batch.push_doubles(rows.iter().map(|r| r.joints[j]).collect());
+    }
+    for k in 0..3 {
+        batch.push_doubles(rows.iter().map(|r| r.tip.position[k]).collect());
+    }
+    if pose {
+        let quaternions: Vec<[f64; 4]> = rows.iter().map(reached_quaternion).collect();
+        for k in 0..4 {
+            batch.push_doubles(quaternions.iter().map(|q| q[k]).collect());
+        }
+    }
+    batch.push_doubles(rows.iter().map(|r| r.residual_mm).collect());
+    if pose {
+        let degrees = |r: &IkRow<'_>| r.orientation_residual_rad.unwrap_or(f64::NAN).to_degrees();
+        batch.push_doubles(rows.iter().map(degrees).collect());
+    }
+    batch.push_texts(rows.iter().map(|r| r.status));
+    batch
+}
+
+/// The orientation a row's tip reached (NaN where its frame is not finite).
+fn reached_quaternion(r: &IkRow<'_>) -> [f64; 4] {
+    if r.tip.rotation.iter().all(|v| v.is_finite()) {
+        canonical_quaternion(&r.tip.orientation())
+    } else {
+        [f64::NAN; 4]
+    }
+}
+
 /// Appends one IK output row: the carried input, then `r` (for pose targets with the
 /// tip's orientation and the orientation residual in degrees).
 pub fn write_ik_row<'a, I: Iterator<Item = &'a str>>(
@@ -289,12 +481,7 @@ pub fn write_ik_row<'a, I: Iterator<Item = &'a str>>(
         out.push(b',');
     }
     if pose {
-        let q = if r.tip.rotation.iter().all(|v| v.is_finite()) {
-            canonical_quaternion(&r.tip.orientation())
-        } else {
-            [f64::NAN; 4]
-        };
-        for v in q {
+        for v in reached_quaternion(r) {
             write_float(out, v);
             out.push(b',');
         }

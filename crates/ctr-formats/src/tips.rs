@@ -1,6 +1,7 @@
 //! The tip CSV written by forward kinematics: the input's columns, then the tip pose.
 
 use super::csvout::{write_field, write_float, write_record};
+use crate::columnar::{Batch, ColumnType};
 use crate::error::{status_name, ErrorKind};
 use crate::robot::FkResult;
 use std::io::Write;
@@ -76,6 +77,45 @@ pub fn tip_header(input: &[String], with_status: bool) -> Result<Vec<String>, Er
     )
 }
 
+/// The columns a Parquet tip file adds after the input's: [`TIP_COLUMNS`] and those
+/// `extra` asks for, as [`tip_header_for`] names them.
+///
+/// ```
+/// use ctr_formats::{tip_column_types, TipColumns};
+/// let t = tip_column_types(TipColumns { status: true, margin: false });
+/// assert_eq!(t.iter().map(|c| c.name()).collect::<Vec<_>>().join(","), "x_mm,y_mm,z_mm,qw,qx,qy,qz,status,residual_per_mm");
+/// ```
+pub fn tip_column_types(extra: TipColumns) -> Vec<ColumnType> {
+    let mut types: Vec<ColumnType> = TIP_COLUMNS.iter().map(|c| ColumnType::double(c)).collect();
+    if extra.status {
+        types.push(ColumnType::text(STATUS_COLUMNS[0]));
+        types.push(ColumnType::double(STATUS_COLUMNS[1]));
+    }
+    if extra.margin {
+        types.push(ColumnType::double(MARGIN_COLUMN));
+    }
+    types
+}
+
+/// The tip columns of `results` for a Parquet output ([`tip_column_types`]).
+pub fn tip_batch(results: &[FkResult], extra: TipColumns) -> Batch {
+    let mut batch = Batch::default();
+    for k in 0..3 {
+        batch.push_doubles(results.iter().map(|r| r.position[k]).collect());
+    }
+    for k in 0..4 {
+        batch.push_doubles(results.iter().map(|r| r.quaternion[k]).collect());
+    }
+    if extra.status {
+        batch.push_texts(results.iter().map(|r| status_name(r.status)));
+        batch.push_doubles(results.iter().map(|r| r.residual_per_mm).collect());
+    }
+    if extra.margin {
+        batch.push_doubles(results.iter().map(|r| r.stability_margin).collect());
+    }
+    batch
+}
+
 /// Formats a float with Rust's shortest round-trip representation: parsing the text
 /// gives back the same `f64`, bit for bit (`-0` stays `-0`).
 ///
@@ -101,6 +141,18 @@ pub enum Carried<'a, I: Iterator<Item = &'a str>> {
     Fields(I),
     /// A line of fields already in CSV form (from `plain_line`).
     Line(&'a str),
+    /// A row of a Parquet file's columns, written as CSV text.
+    Columns(CarriedColumns<'a>),
+}
+
+/// A row of a Parquet file's columns, carried into a CSV output
+/// ([`JointRows::carried`](crate::JointRows::carried)).
+#[derive(Clone, Copy, Debug)]
+pub struct CarriedColumns<'a> {
+    pub(crate) columns: &'a [crate::columnar::Column],
+    /// the columns carried (increasing indices), or all
+    pub(crate) keep: Option<&'a [usize]>,
+    pub(crate) row: usize,
 }
 
 /// Writes the carried columns of a row, each followed by a comma.
@@ -117,6 +169,16 @@ pub(crate) fn write_carried<'a, I: Iterator<Item = &'a str>>(
             for f in fields {
                 write_field(out, f);
                 out.push(b',');
+            }
+        }
+        Carried::Columns(c) => {
+            let mut each = |column: &crate::columnar::Column| {
+                column.write_csv(c.row, out);
+                out.push(b',');
+            };
+            match c.keep {
+                Some(keep) => keep.iter().for_each(|&i| each(&c.columns[i])),
+                None => c.columns.iter().for_each(each),
             }
         }
     }
