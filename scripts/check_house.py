@@ -1,6 +1,10 @@
 #!/usr/bin/env python3
-"""The house rules of crates/*/src: no import cycles between the files of a crate, and
-no source file longer than MAX_LINES lines before its `#[cfg(test)]` module.
+"""The house rules of crates/*/src: no import cycles between the files of a crate, no
+source file longer than MAX_LINES lines before its `#[cfg(test)]` module, and no
+function longer than MAX_FN_LINES lines (signature to closing brace, before the file's
+test module), save at most MAX_LONG_FNS whose line before the signature holds a
+`// house: long because ...` comment saying why splitting would hurt reading, and none
+of those longer than HARD_FN_LINES.
 
     python3 scripts/check_house.py         # exit 1 and print what breaks a rule
 
@@ -19,6 +23,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 # Longest source file, lines before its test module.
 MAX_LINES = 700
+# Longest function, lines.
+MAX_FN_LINES = 100
+# Functions allowed over MAX_FN_LINES with a `// house: long because` comment, and
+# the length none may pass.
+MAX_LONG_FNS = 3
+HARD_FN_LINES = 150
+FN = re.compile(
+    r'^\s*(?:pub(?:\([^)]*\))?\s+)?(?:const\s+)?(?:unsafe\s+)?(?:extern\s+"C"\s+)?fn\s+(\w+)'
+)
+LONG_BECAUSE = "// house: long because"
 PATH = re.compile(r"\b(crate|super|self)((?:::(?:\w+|\{[^;]*?\}))+)")
 REEXPORT = re.compile(r"pub(?:\([\w:]+\))?\s+use\s+([\w:]+)::\{?([^;]*?)\}?;", re.S)
 
@@ -154,8 +168,59 @@ def long_files() -> list:
     return out
 
 
+def function_lengths(f: Path) -> list:
+    """(lines, name, excused) of every function of `f` before its test module: from
+    its signature to its closing brace (braces in strings and comments ignored)."""
+    lines = f.read_text().split("\n")
+    cut = next((i for i, l in enumerate(lines) if l.startswith("#[cfg(test)]")), len(lines))
+    lines = lines[:cut]
+    out = []
+    for i, line in enumerate(lines):
+        m = FN.match(line)
+        if not m:
+            continue
+        depth, started = 0, False
+        for j in range(i, len(lines)):
+            code = re.sub(r"//.*", "", lines[j])
+            code = re.sub(r'"(\\.|[^"\\])*"', '""', code)
+            code = re.sub(r"'(\\.|[^'\\])'", "''", code)
+            if not started and ";" in code and "{" not in code:
+                break
+            for ch in code:
+                if ch == "{":
+                    depth += 1
+                    started = True
+                elif ch == "}":
+                    depth -= 1
+            if started and depth == 0:
+                excused = i > 0 and LONG_BECAUSE in lines[i - 1]
+                out.append((j - i + 1, m.group(1), excused))
+                break
+    return out
+
+
+def long_functions() -> list:
+    """The rule's breaches, in words."""
+    out, excused = [], []
+    for f in sorted(ROOT.glob("crates/*/src/**/*.rs")):
+        for n, name, why in function_lengths(f):
+            where = f"{f.relative_to(ROOT)}: fn {name}: {n} lines"
+            if n > HARD_FN_LINES:
+                out.append(f"{where} (at most {HARD_FN_LINES}, even with a reason)")
+            elif n > MAX_FN_LINES and not why:
+                out.append(f"{where} (at most {MAX_FN_LINES}; or say why above it: {LONG_BECAUSE} ...)")
+            elif n > MAX_FN_LINES:
+                excused.append(where)
+    if len(excused) > MAX_LONG_FNS:
+        out.append(f"{len(excused)} functions excused (at most {MAX_LONG_FNS}): " + "; ".join(excused))
+    return out
+
+
 def main() -> int:
     found = []
+    for breach in long_functions():
+        found.append(breach)
+        print("too long:", breach)
     for n, f in long_files():
         found.append(f)
         print(f"too long: {f}: {n} lines before its tests (at most {MAX_LINES})")
@@ -168,7 +233,10 @@ def main() -> int:
                 for b in sorted(graph[a] & set(comp)):
                     print(f"  {a} -> {b}")
     if not found:
-        print(f"no import cycles between files; no source file over {MAX_LINES} lines")
+        print(
+            f"no import cycles between files; no source file over {MAX_LINES} lines; "
+            f"no function over {MAX_FN_LINES} lines"
+        )
     return 1 if found else 0
 
 

@@ -10,8 +10,8 @@
 //! Newton tolerance (`SolverConfig::step_tolerance_per_mm`), but the fixed chunking
 //! makes even those last bits reproducible.
 
-use crate::discrepancy::along_commands;
 use crate::ik::{Ik, IkResult};
+use crate::learned::along_commands;
 use crate::margin::Margins;
 use crate::model::{ModelError, RowModel, RowSolver};
 use ctr_core::SolveError;

@@ -1,5 +1,5 @@
 //! The learned discrepancy of `[model.discrepancy]` evaluated (its inputs read the
-//! commanded joints delayed by the model's latency, [`delayed_commands`]): a Gaussian process over
+//! commanded joints delayed by the model's latency, `crate::learned`): a Gaussian process over
 //! the joints and their history (the file form, its inputs and equations are
 //! `ctr_formats::discrepancy`'s docs), prepared once (the training rows' kernel
 //! factored) and added to the modelled tip row by row along each run.
@@ -10,9 +10,7 @@
 //! `k(v)^T K^-1 Y` (one column of `Y` per tip coordinate, the model's error there) and
 //! the standard deviation of a measurement about it `sqrt(s^2 - k(v)^T K^-1 k(v) + n^2)`.
 
-use crate::model::ModelSpec;
-use crate::timeline::{actual_joints, TimeEffects};
-use ctr_formats::{inputs_along_run, Discrepancy, Recording};
+use ctr_formats::{inputs_along_run, Discrepancy};
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 
 /// `[model.discrepancy]` prepared to evaluate (see the module docs).
@@ -114,51 +112,4 @@ impl Gp {
             .map(|u| self.at(u))
             .collect()
     }
-}
-
-/// The joints a discrepancy reads for the rows of run `run` of `rec`: the commanded ones
-/// delayed by `model`'s latency along the run (as the latency effect delays them; the
-/// commands themselves without one). Not the joint offsets' or the friction's: the play
-/// inputs model the history themselves, and an offset only shifts what is standardised.
-pub fn delayed_commands(model: &ModelSpec, rec: &Recording, run: usize) -> Vec<Vec<f64>> {
-    delayed(model, Some(&rec.run_times(run)), rec.run_joints(run))
-}
-
-/// The commanded joint rows `joints` of one run delayed by `model`'s latency at their
-/// times `t_s` (as they are without a latency or without times).
-fn delayed(model: &ModelSpec, t_s: Option<&[f64]>, joints: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
-    match (model.effects.latency, t_s) {
-        (Some(l), Some(t)) if l.tau_s != 0.0 => {
-            let mut delay = TimeEffects::none(model.robot.n_tubes());
-            delay.latency_s = l.tau_s;
-            actual_joints(t, &joints, &delay)
-        }
-        _ => joints,
-    }
-}
-
-/// `model`'s discrepancy along one run of commanded joint rows `joints` (flat, file
-/// order and units) at times `t_s` (needed where the model has a latency): each row's
-/// correction (mm) and the standard deviation of a measurement about it (mm per axis);
-/// `None` without a discrepancy.
-///
-/// ```
-/// use ctr_analysis::{discrepancy::along_commands, model::ModelSpec};
-/// use ctr_formats::RobotSpec;
-/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
-///     length_mm = 260.0\ncurved_length_mm = 0.0\nyoungs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
-/// assert!(along_commands(&ModelSpec::from_spec(&spec), &[50.0, 0.0], None).is_none());
-/// # Ok::<(), ctr_formats::Error>(())
-/// ```
-pub fn along_commands(
-    model: &ModelSpec,
-    joints: &[f64],
-    t_s: Option<&[f64]>,
-) -> Option<Vec<([f64; 3], f64)>> {
-    let gp = model.discrepancy.as_ref()?;
-    let width = 2 * model.robot.n_tubes();
-    let rows: Vec<Vec<f64>> = joints.chunks(width).map(<[f64]>::to_vec).collect();
-    let rows = delayed(model, t_s, rows);
-    let refs: Vec<&[f64]> = rows.iter().map(|r| &r[..]).collect();
-    Some(gp.along_run(&refs))
 }

@@ -33,6 +33,7 @@ pub mod batch;
 pub mod discrepancy;
 pub mod ik;
 pub mod job;
+pub mod learned;
 pub mod limits;
 pub mod margin;
 pub mod model;

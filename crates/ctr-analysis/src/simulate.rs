@@ -6,7 +6,7 @@
 //! its recorded tip force (the loaded model, torsion; a recorded force on a rigid
 //! model is refused as the core refuses it), the tip as measured.
 
-use crate::discrepancy::delayed_commands;
+use crate::learned::delayed_commands;
 use crate::model::{ModelError, ModelSpec};
 use crate::timeline::actual_joints;
 use ctr_core::{JointError, SolveError, Status};

@@ -5,6 +5,7 @@
 use crate::found::{simulate, Found};
 use crate::grade;
 use crate::locate;
+use crate::report::Grade;
 use crate::report::{Diagnosis, Figures, Report, Split};
 use crate::residual::{figures, positions, RowError};
 use crate::start::noise::outlier_rule;
@@ -39,7 +40,7 @@ pub(crate) fn finish(
     let predictive: Vec<_> = found
         .findings
         .iter()
-        .filter(|f| f.grade == grade::Grade::Predictive)
+        .filter(|f| f.grade == Grade::Predictive)
         .map(|f| f.effect)
         .collect();
     let verdict = Verdict::new(&start, &found.model, &found.e, &pred.margin, &predictive);
@@ -77,7 +78,7 @@ pub(crate) fn finish(
     verdict.lean_on(
         findings
             .iter()
-            .filter(|f| f.grade == grade::Grade::Predictive)
+            .filter(|f| f.grade == Grade::Predictive)
             .map(|f| f.effect),
     );
     let fit_share = start.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;

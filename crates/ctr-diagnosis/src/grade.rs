@@ -21,45 +21,7 @@
 //! away: it lowers the grade.
 
 use crate::report::numbers::intervals;
-use crate::report::Finding;
-use serde::Serialize;
-
-/// How sure the report is of a finding (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Grade {
-    /// Physics the data show: every check passed and an interval excludes "not there".
-    Established,
-    /// Helps prediction on held-out rows; its form is not established.
-    Predictive,
-}
-
-impl Grade {
-    /// The grade's name in the report (`established`, `predictive`).
-    ///
-    /// ```
-    /// assert_eq!(ctr_diagnosis::Grade::Predictive.as_str(), "predictive");
-    /// ```
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Grade::Established => "established",
-            Grade::Predictive => "predictive",
-        }
-    }
-
-    /// The grade named `name` (`None` for another word).
-    ///
-    /// ```
-    /// use ctr_diagnosis::Grade;
-    /// assert_eq!(Grade::parse("established"), Some(Grade::Established));
-    /// assert_eq!(Grade::parse("sure"), None);
-    /// ```
-    pub fn parse(name: &str) -> Option<Grade> {
-        [Grade::Established, Grade::Predictive]
-            .into_iter()
-            .find(|g| g.as_str() == name)
-    }
-}
+use crate::report::{Finding, Grade};
 
 /// The value of a parameter of an effect's table in the robot file (its key) that means
 /// the effect is not there; `None` for a parameter without one (a clearance's peak

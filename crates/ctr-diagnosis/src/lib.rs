@@ -108,7 +108,7 @@ pub use diagnose::diagnose;
 pub use empirical::hybrid::{FOLDS, MAX_TERMS};
 pub use error::DiagnoseError;
 pub use evaluate::evaluate;
-pub use grade::{absent_value, Grade};
+pub use grade::absent_value;
 pub use locate::stability::{
     checked_warn_margin, near_snap_words, MarginRange, Marks, Stability, ROWS_AFTER_A_SNAP,
 };
@@ -118,7 +118,7 @@ pub use report::html::{escape_html, Page};
 pub use report::plots::Plot;
 pub use report::{
     fitted_file, Alternative, AngularFigures, AngularNoise, Band, Correlated, Diagnosis, Empirical,
-    ExpectedInterval, Figures, Finding, GpInput, JointRun, Noise, Report, RunErrors, Split,
+    ExpectedInterval, Figures, Finding, GpInput, Grade, JointRun, Noise, Report, RunErrors, Split,
     SuggestedRun, Term, Trial,
 };
 pub use search::MIN_HELDOUT_GAIN;

@@ -14,8 +14,8 @@
 use crate::candidates::EffectId;
 use crate::fit::MAX_FIT_ITERATIONS;
 use crate::found::{simulate, Found};
-use crate::grade::Grade;
 use crate::paired::clearly_lower;
+use crate::report::Grade;
 use crate::report::REMOVED;
 use crate::residual::figures;
 use crate::search::MIN_HELDOUT_GAIN;

@@ -214,21 +214,7 @@ impl Discrepancy {
                 ),
             ));
         }
-        let inputs = file
-            .inputs
-            .iter()
-            .map(|name| {
-                Input::parse(name, n).ok_or_else(|| {
-                    (
-                        "inputs",
-                        format!(
-                            "model.discrepancy.inputs: \"{name}\" is no input for {n} tube(s) \
-                             (s<i>, theta<i>, theta<j> - theta<i>, play(theta<j> - theta<i>, w))"
-                        ),
-                    )
-                })
-            })
-            .collect::<Result<Vec<Input>, _>>()?;
+        let inputs = parse_inputs(&file.inputs, n)?;
         let d = inputs.len();
         for (key, v) in [
             ("mean", &file.mean),
@@ -324,4 +310,22 @@ impl Discrepancy {
             target_mm: self.target_mm.clone(),
         }
     }
+}
+
+/// The inputs named `names` for `n` tubes, or the error naming the first unknown one.
+fn parse_inputs(names: &[String], n: usize) -> Result<Vec<Input>, (&'static str, String)> {
+    names
+        .iter()
+        .map(|name| {
+            Input::parse(name, n).ok_or_else(|| {
+                (
+                    "inputs",
+                    format!(
+                        "model.discrepancy.inputs: \"{name}\" is no input for {n} tube(s) \
+                         (s<i>, theta<i>, theta<j> - theta<i>, play(theta<j> - theta<i>, w))"
+                    ),
+                )
+            })
+        })
+        .collect()
 }

@@ -302,6 +302,17 @@ impl<'a> Context<'a> {
         }
     }
 
+    /// `fk`, the tip of the file's row `row`, with the model's learned discrepancy
+    /// added (`[model.discrepancy]`, along the rows' runs: [`Series::discrepancy`]).
+    fn corrected(&self, row: usize, mut fk: FkResult) -> FkResult {
+        if let Some(d) = self.series.and_then(|s| s.discrepancy.as_ref()) {
+            for (p, c) in fk.position.iter_mut().zip(d[row]) {
+                *p += c;
+            }
+        }
+        fk
+    }
+
     /// Solves and formats `rows`, after `after` (the solver the piece before ended
     /// with) or from a fresh start.
     fn solve(&self, rows: &JointRows, after: Option<&RowSolver<'a>>) -> Chunk<'a> {
@@ -345,6 +356,7 @@ impl<'a> Context<'a> {
                     }
                 };
                 if chunk.keeps(rows, r, &fk, job.on_error == OnError::Skip) {
+                    let fk = self.corrected(rows.first_row() + r, fk);
                     if self.columns_out {
                         kept.push((r, fk));
                     } else {

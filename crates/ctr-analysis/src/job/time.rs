@@ -1,6 +1,7 @@
 //! The rows of a joint file as time series: the times of `t_s`, the runs of `run`, and
 //! the actual joints the model's time effects (latency, friction) make of the commands.
 
+use crate::learned::along_commands;
 use crate::model::{RowModel, EMPIRICAL};
 use ctr_formats::{Error, ErrorKind, JointRows, Location};
 
@@ -10,6 +11,9 @@ pub(super) struct Series {
     pub actual: Vec<f64>,
     /// Each row's time, s, when the file has `t_s`.
     pub t_s: Option<Vec<f64>>,
+    /// Each row's correction by the model's learned discrepancy, mm, when it has one
+    /// (run by run, along the commanded joints: `crate::discrepancy`).
+    pub discrepancy: Option<Vec<[f64; 3]>>,
 }
 
 /// What a time series is read from: the joint file's pieces in order, its name, header
@@ -91,9 +95,22 @@ pub(super) fn time_series(rows: &Rows<'_>, fkm: &RowModel, robot: &str) -> Resul
                 },
             )
         })?;
+    let t_s = t_col.map(|_| times);
+    let discrepancy = fkm.spec().discrepancy.is_some().then(|| {
+        let w = 2 * fkm.robot().n_tubes();
+        runs.iter()
+            .flat_map(|run| {
+                let times = t_s.as_ref().map(|t| &t[run.clone()]);
+                along_commands(fkm.spec(), &commanded[run.start * w..run.end * w], times)
+                    .unwrap_or_default()
+            })
+            .map(|(c, _)| c)
+            .collect()
+    });
     Ok(Series {
         actual,
-        t_s: t_col.map(|_| times),
+        t_s,
+        discrepancy,
     })
 }
 

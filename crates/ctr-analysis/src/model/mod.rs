@@ -309,7 +309,9 @@ impl RowModel {
     /// True when an effect needs the rows' order (and for latency their times): the
     /// rows must go through [`actual_joints`](Self::actual_joints) first.
     pub fn needs_time(&self) -> bool {
-        self.spec.effects.needs_time() || self.corrects_with_time()
+        self.spec.effects.needs_time()
+            || self.corrects_with_time()
+            || self.spec.discrepancy.is_some()
     }
 
     /// The time effect that needs times (not just order) and is on: `latency`, or

@@ -89,6 +89,34 @@ impl<T: Real, const N: usize> Shooting<T, MAX_UNKNOWNS> for Loaded<'_, T, N> {
 }
 
 impl<T: Real, const N: usize> Solver<T, N> {
+    /// Where a loaded solve at `q` starts: the last loaded solve's unknowns,
+    /// extrapolated along the joints, else the unloaded twist (solved here: its
+    /// iterations and softest mode come with it; else 0 and 1).
+    fn loaded_start(
+        &mut self,
+        robot: &Robot<T, N>,
+        q: &Joints<T, N>,
+    ) -> Result<([T; MAX_UNKNOWNS], u32, T), SolveError> {
+        let mut x = [T::zero(); MAX_UNKNOWNS];
+        match &self.loaded {
+            Some(w) => {
+                x = w.x;
+                if let Some((x0, q0)) = &w.before {
+                    let alpha = extrapolation(q, &w.q, q0);
+                    for i in 0..MAX_UNKNOWNS {
+                        x[i] += (w.x[i] - x0[i]) * alpha;
+                    }
+                }
+                Ok((x, 0, T::one()))
+            }
+            None => {
+                let unloaded = self.solve(robot, Request::new(*q, Model::Torsion))?;
+                x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
+                Ok((x, unloaded.iterations, unloaded.softest_mode))
+            }
+        }
+    }
+
     /// A request with loads (or a compliance) on the checked actual joints `q`.
     pub(super) fn loaded_answer(
         &mut self,
@@ -101,28 +129,8 @@ impl<T: Real, const N: usize> Solver<T, N> {
         let loads = request.loads.unwrap_or_default();
         let ctx = context(robot, q, &loads)?;
         let registration = request.effects.and_then(|e| e.registration);
-        // start from the last loaded solve, else from the unloaded twist
         let warm = self.loaded;
-        let mut extra_iterations = 0;
-        let mut margin = T::one();
-        let mut x = [T::zero(); MAX_UNKNOWNS];
-        match &warm {
-            Some(w) => {
-                x = w.x;
-                if let Some((x0, q0)) = &w.before {
-                    let alpha = extrapolation(q, &w.q, q0);
-                    for i in 0..MAX_UNKNOWNS {
-                        x[i] += (w.x[i] - x0[i]) * alpha;
-                    }
-                }
-            }
-            None => {
-                let unloaded = self.solve(robot, Request::new(*q, Model::Torsion))?;
-                extra_iterations = unloaded.iterations;
-                margin = unloaded.softest_mode;
-                x[..N - 1].copy_from_slice(&unloaded.base_twist_per_mm[..N - 1]);
-            }
-        }
+        let (x, extra_iterations, margin) = self.loaded_start(robot, q)?;
         let unknowns = N + 2;
         let policy = Policy {
             m: unknowns,

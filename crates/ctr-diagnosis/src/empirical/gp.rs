@@ -34,7 +34,8 @@ use crate::start::Start;
 use argmin::core::{CostFunction, Executor, Gradient, State};
 use argmin::solver::linesearch::MoreThuenteLineSearch;
 use argmin::solver::quasinewton::LBFGS;
-use ctr_analysis::discrepancy::{delayed_commands, kernel, Gp};
+use ctr_analysis::discrepancy::{kernel, Gp};
+use ctr_analysis::learned::delayed_commands;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{inputs_along_run, Discrepancy, Input};
 use nalgebra::DMatrix;
@@ -294,7 +295,7 @@ fn account(
 struct Likelihood {
     /// The last value computed, at its free parameters (argmin asks for the cost and the
     /// gradient at the same point one after the other).
-    last: std::sync::Mutex<Option<(Vec<f64>, (f64, Vec<f64>))>>,
+    last: std::sync::Mutex<Option<(Vec<f64>, Value)>>,
     /// Training inputs, standardised (rows).
     u: DMatrix<f64>,
     /// Targets (rows, x y z).
@@ -304,6 +305,9 @@ struct Likelihood {
     /// The targets' standard deviation, mm.
     spread: f64,
 }
+
+/// The negative log marginal likelihood and its gradient in the free parameters.
+type Value = (f64, Vec<f64>);
 
 /// A fitted start: the hyperparameters (length scales, signal, noise) and the negative
 /// log marginal likelihood.
@@ -387,7 +391,7 @@ impl Likelihood {
     }
 
     /// [`value`](Self::value), remembered for the last `p`.
-    fn cached(&self, p: &[f64]) -> Option<(f64, Vec<f64>)> {
+    fn cached(&self, p: &[f64]) -> Option<Value> {
         let mut last = self.last.lock().ok()?;
         if let Some((at, v)) = last.as_ref() {
             if at.as_slice() == p {
@@ -400,7 +404,7 @@ impl Likelihood {
     }
 
     /// The negative log marginal likelihood at `p` and its gradient in `p`.
-    fn value(&self, p: &[f64]) -> Option<(f64, Vec<f64>)> {
+    fn value(&self, p: &[f64]) -> Option<Value> {
         let h = self.hyper(p);
         let (n, d) = (self.u.nrows(), self.u.ncols());
         let (s2, noise2) = (h[d] * h[d], h[d + 1] * h[d + 1]);

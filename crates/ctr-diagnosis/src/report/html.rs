@@ -14,10 +14,10 @@
 //! labels, names, the robot file) is HTML-escaped.
 
 use crate::error::DiagnoseError;
-use crate::grade::Grade;
 use crate::locate::stability::Stability;
 use crate::report::numbers::{intervals, sig, Interval};
 use crate::report::plots::{Plot, RunError, Traces};
+use crate::report::Grade;
 use crate::report::{fitted_file, Report, REMOVED};
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::{Recording, RobotSpec};

@@ -292,7 +292,7 @@ impl Robot {
         }
         if band {
             let along =
-                ctr_analysis::discrepancy::along_commands(fkm.spec(), &rows.data, times.as_deref())
+                ctr_analysis::learned::along_commands(fkm.spec(), &rows.data, times.as_deref())
                     .ok_or_else(|| {
                         errors::input(
                     "band=True: the robot has no [model.discrepancy] (a learned discrepancy, \
