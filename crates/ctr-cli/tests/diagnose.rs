@@ -80,7 +80,9 @@ fn diagnose_writes_report_fitted_model_and_plots() {
     // the page: the verdict, the finding, every plot inline, the same SVG as the files
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.contains("data-explained=\"true\"><strong>Verdict: explained</strong>"));
-    assert!(page.contains("<h3><code>clearance</code></h3>"));
+    assert!(
+        page.contains("<h3><code>clearance</code> <span class=\"badge\">established</span></h3>")
+    );
     assert_eq!(page.matches("<svg ").count(), names.len());
     let run_plot = std::fs::read_to_string(plots.join("run-rot-inner.svg")).unwrap();
     assert!(page.contains(run_plot.trim_end()));
@@ -216,8 +218,8 @@ fn bad_diagnose_input_exits_2_with_one_line() {
     }
 }
 
-/// `--suggest-run`: where the data leave parameters poorly pinned (the drift
-/// recording's feed plays), the report names the next run and the file is a joint
+/// `--suggest-run`: where the data leave parameters poorly pinned (the feed-gain
+/// recording's stand-ins for a gain outside the vocabulary), the report names the next run and the file is a joint
 /// trajectory `hw run` reads (t_s and the joint columns, inside the recorded ranges);
 /// where everything is pinned, no file and a line on stderr.
 #[test]
@@ -226,7 +228,7 @@ fn diagnose_suggests_the_next_run_as_a_joint_file() {
     let run_csv = dir.path().join("run.csv");
     let report = dir.path().join("report.json");
     let robot = shared("robots/liu2023.toml");
-    let rec = shared("recordings/dev-unexplained-drift.csv");
+    let rec = shared("recordings/dev-unexplained-feed-gain.csv");
     let o = run(&[
         "diagnose",
         "--robot",

@@ -443,7 +443,8 @@ fn coarse_steps_do_not_converge_to_a_root_of_the_discretisation() {
 /// solutions of different branches, was sent into a third equilibrium's basin: the tip
 /// jumped 208 mm where the Jacobians allow 0.04. The solver now extrapolates only
 /// along one branch (after a snap or a retry it starts from the last solution alone):
-/// the third solve continues the second's branch.
+/// the third solve continues the second's branch. (Today the first solve is already
+/// stable: see the note in the body.)
 #[test]
 fn a_warm_start_does_not_extrapolate_across_a_snap() {
     let robot = Robot::new([
@@ -496,13 +497,20 @@ fn a_warm_start_does_not_extrapolate_across_a_snap() {
             .solve(&robot, Request::new(q, Model::Torsion))
             .unwrap()
     });
-    // the path's premise: the first solve is unstable, the second snapped off it
-    assert!(
-        sols[0].softest_mode < 0.0 && sols[1].softest_mode > 1.0,
-        "{sols:?}"
-    );
-    let moved = (sols[2].tip.position - sols[1].tip.position).norm();
-    assert!(moved < 0.1, "the tip jumped {moved} mm: {sols:?}");
+    // Since the core solves along the softest direction of the full block (a 2 x 2
+    // block padded by its own norm, not 1e30), the first solve lands on the stable
+    // branch at once (softest mode 1.1): no snap happens on this path any more, and
+    // what is left to hold is the property itself, every step continuing one branch.
+    // The one-branch rule is still what keeps the third solve there when the first is
+    // unstable (the solver's memory after a snap).
+    assert!(sols[1].softest_mode > 1.0, "{sols:?}");
+    for k in 1..sols.len() {
+        let moved = (sols[k].tip.position - sols[k - 1].tip.position).norm();
+        assert!(
+            moved < 0.1,
+            "the tip jumped {moved} mm at step {k}: {sols:?}"
+        );
+    }
     assert!(
         (sols[2].softest_mode - sols[1].softest_mode).abs() < 1e-3,
         "{sols:?}"

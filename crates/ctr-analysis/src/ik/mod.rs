@@ -17,8 +17,10 @@
 //! `M = diag(1, rotation_scale_mm^2, ...)` weighs a radian as `rotation_scale_mm`
 //! millimetres. The constant damping of a rotation, `damping_rotation`, scales with
 //! the square of its lever arm (`(J^T W_E J)_kk`, the tip's weighted motion per radian)
-//! below `rotation_scale_mm`: held fixed it would swamp a rotation whose tip is near
-//! its axis, and the steps would crawl (see [`IkOptions::damping_rotation`]).
+//! below `rotation_scale_mm` where the damping adapts: held fixed it would swamp a
+//! rotation whose tip is near its axis, and the steps would crawl (see
+//! [`IkOptions::damping_rotation`]). Without adaptive damping `W_N` is the paper's,
+//! constant.
 //!
 //! Without limits the step is the paper's `dq = H^-1 g`. Here each step is that small
 //! QP, solved with clarabel, so that `q + dq` satisfies the limits exactly: feed order

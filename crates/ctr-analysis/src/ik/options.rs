@@ -86,7 +86,9 @@ pub struct IkOptions {
     /// rotation whose lever arm (weighted tip motion per radian) is at least
     /// `rotation_scale_mm`; one with a shorter lever arm `l` gets this times
     /// `(l / rotation_scale_mm)^2`: the damping scales with the lever arm, so that it
-    /// never holds back a rotation whose tip is near its axis.
+    /// never holds back a rotation whose tip is near its axis. The scaling goes with
+    /// `adaptive_damping` (whose `lambda` then keeps the steps in hand); without it the
+    /// step is the paper's, with this damping constant.
     pub damping_rotation: f64,
     /// Adapt `lambda M` on top of the constant damping (module docs).
     pub adaptive_damping: bool,

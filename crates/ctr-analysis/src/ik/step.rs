@@ -243,10 +243,13 @@ impl Ik {
                 (o.damping_feed, 1.0)
             } else {
                 let scale_sq = o.rotation_scale_mm * o.rotation_scale_mm;
-                (
-                    o.damping_rotation * lever_fraction(lm.a[(k, k)], scale_sq),
-                    scale_sq,
-                )
+                // the paper's plain step (no adaptive damping) keeps its constant W_N
+                let fraction = if o.adaptive_damping {
+                    lever_fraction(lm.a[(k, k)], scale_sq)
+                } else {
+                    1.0
+                };
+                (o.damping_rotation * fraction, scale_sq)
             };
             let adapt = if o.adaptive_damping {
                 lm.lambda * metric

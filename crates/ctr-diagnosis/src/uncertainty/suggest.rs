@@ -11,7 +11,7 @@
 //!
 //! - each tube turned alone over its recorded range and back;
 //! - each tube's feed increment swept alone over its range and back;
-//! - the innermost tube turned at full extension (every increment at its largest);
+//! - the innermost tube turned at full extension (the most extended row's feeds);
 //! - a reversal: the innermost tube turned back and forth over a quarter of its range,
 //!   four times (friction and latency show at reversals);
 //! - a rest: the middle configuration held (time effects).
@@ -96,6 +96,9 @@ struct Ranges {
     hi_th: Vec<f64>,
     mid_inc: Vec<f64>,
     mid_th: Vec<f64>,
+    /// The increments of the most extended row recorded (the innermost feed at its
+    /// largest): each increment at its own largest could reach past what was recorded.
+    full_inc: Vec<f64>,
 }
 
 impl Ranges {
@@ -111,8 +114,14 @@ impl Ranges {
         let mut hi_inc = vec![f64::NEG_INFINITY; n];
         let mut lo_th = vec![f64::INFINITY; n];
         let mut hi_th = vec![f64::NEG_INFINITY; n];
+        let mut full_inc = vec![0.0; n];
+        let mut fullest = f64::NEG_INFINITY;
         for r in &rec.rows {
             let inc = inc_of(&r.q);
+            if r.q[2 * n - 2] > fullest {
+                fullest = r.q[2 * n - 2];
+                full_inc.clone_from(&inc);
+            }
             for k in 0..n {
                 lo_inc[k] = lo_inc[k].min(inc[k]);
                 hi_inc[k] = hi_inc[k].max(inc[k]);
@@ -129,6 +138,7 @@ impl Ranges {
             hi_th,
             mid_inc,
             mid_th,
+            full_inc,
         }
     }
 
@@ -214,12 +224,12 @@ fn innermost_turns(r: &Ranges) -> Vec<Candidate> {
     }
     let full_extension = Candidate {
         name: format!(
-            "turn tube {n} from {:.0} to {:.0} deg and back at full extension (every \
-             increment at its largest)",
+            "turn tube {n} from {:.0} to {:.0} deg and back at full extension (the \
+             feeds of the most extended row recorded)",
             r.lo_th[last], r.hi_th[last]
         ),
         q: r.sweep(
-            &r.hi_inc,
+            &r.full_inc,
             Slot::Turn(last),
             out_and_back(r.lo_th[last], r.hi_th[last], rows),
         ),
