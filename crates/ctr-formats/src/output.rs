@@ -8,7 +8,8 @@
 //! has its own randomly named temporary file, so two runs writing the same path at once
 //! leave one complete file (the last rename wins), never an interleaving. A run that
 //! fails deletes its temporary file; a killed one leaves it behind (a hidden
-//! `.NAME.XXXXXX.tmp`, never read by anything).
+//! `.NAME.XXXXXX.tmp`, never read by anything). A target that exists and is not a
+//! regular file (`/dev/null`, a named pipe) is written into, not replaced.
 //!
 //! A [`journal`](AtomicFile::journal) is the same with a visible temporary file
 //! (`NAME.XXXXXX.partial`) for outputs whose rows are evidence (the rig's recordings):
@@ -146,7 +147,13 @@ impl AtomicFile {
     fn with_temp(path: &Path, journal: bool) -> Result<AtomicFile, Error> {
         let file = path.display().to_string();
         let fail = |kind| Error::new(Location::file(&file), kind);
-        let dir = output_dir(path)?;
+        // a device or a pipe is written into on commit, never renamed over: its
+        // temporary file goes where temporary files go (`/dev` is not writable)
+        let dir = if !journal && is_special(path) {
+            std::env::temp_dir()
+        } else {
+            output_dir(path)?
+        };
         let name = path
             .file_name()
             .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
@@ -324,6 +331,11 @@ impl AtomicFile {
             .and_then(|()| cut(tmp.as_file()))
             .and_then(|()| tmp.as_file().sync_all())
             .map_err(|e| fail("write", e))?;
+        if replace && is_special(&self.path) {
+            // a device or a pipe (`-o /dev/null`): written into, never replaced by a
+            // rename (which would put a regular file where the device was)
+            return copy_into(&tmp, &self.path).map_err(|e| fail("write", e));
+        }
         let placed = if replace {
             tmp.persist(&self.path)
         } else {
@@ -344,6 +356,21 @@ impl AtomicFile {
         sync_dir(&self.path);
         Ok(())
     }
+}
+
+/// Whether `path` exists and is neither a regular file nor a directory (a device such
+/// as `/dev/null`, a named pipe, a socket): an output there is written into it.
+fn is_special(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Copies the whole temporary file `tmp` into the existing `path` (opened for
+/// writing, not truncated: a device has no length); `tmp` is deleted when dropped.
+fn copy_into(tmp: &NamedTempFile, path: &Path) -> io::Result<()> {
+    let mut from = tmp.reopen()?;
+    let mut to = std::fs::OpenOptions::new().write(true).open(path)?;
+    io::copy(&mut from, &mut to)?;
+    to.flush()
 }
 
 /// Syncs the directory of `path` so that a rename into it is on the disk (Unix; best
@@ -381,5 +408,40 @@ impl Write for AtomicFile {
     }
     fn flush(&mut self) -> io::Result<()> {
         self.tmp.flush()
+    }
+}
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use super::*;
+
+    /// `-o /dev/null`, or a named pipe: the output is written into it, and it stays
+    /// what it was (a rename would have put a regular file in its place).
+    #[test]
+    fn a_pipe_is_written_into_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        rustix::fs::mknodat(
+            rustix::fs::CWD,
+            &fifo,
+            rustix::fs::FileType::Fifo,
+            rustix::fs::Mode::from_raw_mode(0o600),
+            0,
+        )
+        .unwrap();
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+        };
+        let mut out = AtomicFile::create(&fifo).unwrap();
+        assert!(!out.temp_path().starts_with(dir.path()));
+        out.write_all(b"x_mm\n1\n").unwrap();
+        out.commit().unwrap();
+        // (checked before joining: a reader whose pipe was replaced would wait forever)
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        assert_eq!(reader.join().unwrap(), "x_mm\n1\n");
+        // nothing left beside it
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }
