@@ -73,3 +73,12 @@ def cli() -> Path:
     exe = Path(json.loads(meta.stdout)["target_directory"]) / "release" / "ctr-cli"
     assert exe.exists(), exe
     return exe
+
+
+def without_comments(text):
+    """A fitted robot file without its header comment lines (what fitted, and the
+    findings by grade)."""
+    lines = text.splitlines(keepends=True)
+    while lines and lines[0].startswith("#"):
+        lines.pop(0)
+    return "".join(lines)

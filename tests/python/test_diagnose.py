@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import ctr_py
-from conftest import REPO, SHARED, spin_while
+from conftest import REPO, SHARED, spin_while, without_comments
 
 LIU = SHARED / "robots" / "liu2023.toml"
 CLEARANCE = SHARED / "recordings" / "dev-clearance.csv"
@@ -23,6 +23,7 @@ NITINOL3 = REPO / "data" / "robots" / "nitinol3.toml"
 pytestmark = pytest.mark.skipif(
     not CLEARANCE.exists(), reason=f"shared data not found at {SHARED} (set CTR_SHARED_DATA)"
 )
+
 
 
 def run_cli(cli: Path, *args) -> subprocess.CompletedProcess:
@@ -255,9 +256,12 @@ def test_report_equals_the_cli_report(report, cli_diagnosis):
     assert report.to_dict() == json.loads(text)
     assert report.to_json() == text
     assert json.loads(report.to_json(indent=False)) == json.loads(text)
-    # the fitted robot file, without the CLI's comment line
+    # the fitted robot file, without the CLI's comment lines (what fitted it, and the
+    # findings by grade)
     header, rest = fitted.split("\n", 1)
     assert header.startswith("# Fitted by ctr-cli")
+    assert "# established (physics the data show): clearance\n" in fitted
+    rest = without_comments(fitted)
     assert report.fitted.to_toml() == rest
     assert report.fitted == ctr_py.Robot.from_toml_str(rest)
     assert report.summary() == stdout
@@ -280,7 +284,9 @@ def test_report_attributes_are_the_contract_fields(report):
     # the recording is explained: no empirical term, in the JSON or here
     assert report.explained is True and "empirical" not in d and report.empirical is None
     f = report.findings[0]
-    assert set(f) == {"effect", "explanation", "where", "parameters", "rms_mm_before",
+    assert f["grade"] == "established" and "passes every check" in f["grade_reason"]
+    assert set(f) == {"effect", "grade", "grade_reason", "explanation", "where",
+                      "parameters", "rms_mm_before",
                       "rms_mm_after", "heldout_rms_mm_before", "heldout_rms_mm_after",
                       "empirical_heldout_rms_mm", "ci95", "equally_explained_by"}
     assert f["equally_explained_by"] == []
@@ -433,7 +439,7 @@ def test_calibrate_equals_the_cli(cli, tmp_path, liu, rec, table):
     assert p.returncode == 0, p.stderr
     r = ctr_py.calibrate(liu, rec, ["clearance"], table=table)
     assert r.to_dict() == json.loads(out.read_text())
-    assert r.fitted.to_toml() == fitted.read_text().split("\n", 1)[1]
+    assert r.fitted.to_toml() == without_comments(fitted.read_text())
     assert r.summary() == p.stdout
     assert r.effects == ["clearance"] and r.tried == []
     assert r.final["heldout_rms_mm"] < 0.3 * r.baseline["heldout_rms_mm"]

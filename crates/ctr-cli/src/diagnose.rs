@@ -30,8 +30,9 @@ pub struct DiagnoseArgs {
     /// to the tip.
     #[arg(long, requires = "out")]
     pub with_empirical: bool,
-    /// Write only the established findings into the fitted file (the predictive ones,
-    /// which help prediction but whose form the data do not establish, left out).
+    /// Write only the established findings into the fitted file, refitted on the fit
+    /// rows without the predictive ones (which help prediction but whose form the data
+    /// do not establish).
     #[arg(long, requires = "out", conflicts_with = "with_empirical")]
     pub established_only: bool,
     /// Write before/after plots (SVG) into this directory (created if missing).

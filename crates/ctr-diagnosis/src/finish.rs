@@ -2,11 +2,13 @@
 //! what the fitted model leaves ([`Verdict`]), the intervals of every finding and the
 //! run to record next ([`crate::uncertainty`]), the rows near a snap, and the report.
 
+use crate::candidates::EffectId;
+use crate::fit::{Problem, MAX_FIT_ITERATIONS};
 use crate::found::{simulate, Found};
 use crate::grade;
 use crate::locate;
 use crate::report::Grade;
-use crate::report::{Diagnosis, Figures, Report, Split};
+use crate::report::{Diagnosis, Figures, Finding, Report, Split};
 use crate::residual::{figures, positions, RowError};
 use crate::start::noise::outlier_rule;
 use crate::start::{sample_period, Start};
@@ -55,7 +57,7 @@ pub(crate) fn finish(
     // intervals at the fitted model; what the data cannot pin set to the nominal; an
     // unexplained remainder widens them by what it can move them by
     let effects: Vec<_> = findings.iter().map(|f| f.effect).collect();
-    let problem = uncertainty::problem_of(
+    let problem = uncertainty::attach::problem_of(
         rec,
         &model,
         &effects,
@@ -63,7 +65,7 @@ pub(crate) fn finish(
         start.huber_mm(),
         start.threads,
     );
-    let (fitted, overall, assessment) = uncertainty::attach(
+    let (fitted, overall, assessment) = uncertainty::attach::attach(
         &problem,
         &start.user,
         &mut findings,
@@ -73,6 +75,7 @@ pub(crate) fn finish(
     if start.checks.present {
         grade::by_intervals(&mut findings);
     }
+    let established = established_alone(&start, &problem, &fitted, &findings);
     // a finding its intervals lowered to predictive no longer explains anything
     let mut verdict = verdict;
     verdict.lean_on(
@@ -118,9 +121,49 @@ pub(crate) fn finish(
             stability: verdict.stability,
         },
         fitted,
+        established,
         empirical: (!explained).then_some(verdict.correction),
         discrepancy: verdict.discrepancy,
         suggested_joints,
+    }
+}
+
+/// The model of the established findings alone: the user's model with them, refitted
+/// on the fit rows from their values in `fitted` without the predictive findings
+/// (whose values the others leaned on: a sensor offset fitted beside a feed offset of
+/// 8 mm does not predict without it). `fitted` itself when every finding is
+/// established; the predictive ones merely taken out when the refit fails.
+fn established_alone(
+    start: &Start,
+    problem: &Problem,
+    fitted: &ModelSpec,
+    findings: &[Finding],
+) -> ModelSpec {
+    let of = |g: Grade| -> Vec<EffectId> {
+        findings
+            .iter()
+            .filter(|f| f.grade == g)
+            .map(|f| f.effect)
+            .collect()
+    };
+    let predictive = of(Grade::Predictive);
+    if predictive.is_empty() {
+        return fitted.clone();
+    }
+    let mut m = fitted.clone();
+    for c in &predictive {
+        c.remove(&mut m);
+    }
+    let kept = of(Grade::Established);
+    if kept.is_empty() {
+        return m;
+    }
+    let mut p = start.problem(start.user.clone(), kept);
+    p.clearance_table = problem.clearance_table;
+    let x0 = p.read(&m);
+    match p.fit(&x0, MAX_FIT_ITERATIONS) {
+        Some(f) => p.model(&f.x),
+        None => m,
     }
 }
 

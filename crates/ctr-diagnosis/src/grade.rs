@@ -51,21 +51,35 @@ pub fn absent_value(key: &str) -> Option<f64> {
 }
 
 /// Whether at least one of `finding`'s parameters has a 95 % interval that excludes its
-/// "not there" value (a finding without parameters, torsion, has nothing to exclude and
-/// counts as excluding; one whose parameters are identified only in combinations,
-/// `ci95.identified`, was judged on those by the checks' Wald test and counts too).
+/// "not there" value, or one of the combinations of its own parameters the data
+/// identify (`ci95.identified`, with its `not_there` value: a ratio of stiffness
+/// factors against 1) excludes it (a finding without parameters, torsion, has nothing
+/// to exclude and counts as excluding). A combination across effects counts for
+/// neither: it cannot say which of the two is there.
 pub(crate) fn present_beyond_doubt(finding: &Finding) -> bool {
-    let (parameters, identified) = intervals(&finding.parameters, &finding.ci95);
-    if parameters.is_empty() || !identified.is_empty() {
+    let (parameters, _) = intervals(&finding.parameters, &finding.ci95);
+    if parameters.is_empty() {
         return true;
     }
-    parameters.iter().any(|p| {
+    let excludes = |lo: Option<f64>, hi: Option<f64>, absent: f64| {
+        lo.is_some_and(|lo| lo > absent) || hi.is_some_and(|hi| hi < absent)
+    };
+    let own = parameters.iter().any(|p| {
         let key = p.name.split('[').next().unwrap_or("");
-        let Some(absent) = absent_value(key) else {
-            return false;
-        };
-        p.lo.is_some_and(|lo| lo > absent) || p.hi.is_some_and(|hi| hi < absent)
-    })
+        absent_value(key).is_some_and(|absent| excludes(p.lo, p.hi, absent))
+    });
+    let combined = finding
+        .ci95
+        .get("identified")
+        .and_then(serde_json::Value::as_array)
+        .into_iter()
+        .flatten()
+        .any(|c| {
+            c["not_there"]
+                .as_f64()
+                .is_some_and(|n| excludes(c["ci95"][0].as_f64(), c["ci95"][1].as_f64(), n))
+        });
+    own || combined
 }
 
 /// Lowers to predictive every established finding none of whose 95 % intervals
@@ -133,14 +147,24 @@ mod tests {
         )];
         by_intervals(&mut f);
         assert_eq!(f[0].grade, Grade::Predictive);
-        // parameters identified only in combinations: the checks' Wald test decided
-        let mut f = vec![finding(
-            json!({"factor": [1.0, 1.3]}),
-            json!({"factor": [[0.135, 7.389], [0.135, 7.389]], "identified": [
-                {"combination": "stiffness factor of tube 2 / stiffness factor of tube 1",
-                 "value": 1.3, "ci95": [1.29, 1.31]}]}),
-        )];
-        by_intervals(&mut f);
-        assert_eq!(f[0].grade, Grade::Established);
+        // parameters identified only in a combination of its own: that combination's
+        // interval against its value where the effect is not there (a ratio of 1)
+        let ratio = |ci95: [f64; 2], not_there: Option<f64>| {
+            let mut c = json!({"combination": "stiffness factor of tube 2 / stiffness factor of tube 1",
+                 "value": 1.3, "ci95": ci95});
+            if let Some(n) = not_there {
+                c["not_there"] = json!(n);
+            }
+            let mut f = vec![finding(
+                json!({"factor": [1.0, 1.3]}),
+                json!({"factor": [[0.135, 7.389], [0.135, 7.389]], "identified": [c]}),
+            )];
+            by_intervals(&mut f);
+            f[0].grade
+        };
+        assert_eq!(ratio([1.29, 1.31], Some(1.0)), Grade::Established);
+        assert_eq!(ratio([0.95, 1.31], Some(1.0)), Grade::Predictive);
+        // a combination across effects (no not_there) says nothing of this one
+        assert_eq!(ratio([1.29, 1.31], None), Grade::Predictive);
     }
 }

@@ -32,9 +32,9 @@ pub(crate) fn readmit(
     established: Found,
     removed: Vec<Removed>,
 ) -> (Found, bool) {
-    let helping: Vec<&Removed> = removed
+    let helping: Vec<(&Removed, Help)> = removed
         .iter()
-        .filter(|r| helps(start, &searched, r.finding.effect))
+        .filter_map(|r| Some((r, helps(start, &searched, r.finding.effect)?)))
         .collect();
     if helping.is_empty() {
         return (established, true);
@@ -45,10 +45,13 @@ pub(crate) fn readmit(
         ..searched
     };
     for r in &removed {
-        let kept = helping.iter().any(|h| h.finding.effect == r.finding.effect);
-        if !kept {
+        let Some(&(_, help)) = helping
+            .iter()
+            .find(|(h, _)| h.finding.effect == r.finding.effect)
+        else {
             found.findings.retain(|f| f.effect != r.finding.effect);
-        }
+            continue;
+        };
         if let Some(f) = found
             .findings
             .iter_mut()
@@ -56,9 +59,9 @@ pub(crate) fn readmit(
         {
             f.grade = Grade::Predictive;
             f.grade_reason = format!(
-                "it helps prediction (without it the fitted model does worse on the held-out \
-                 rows, beyond chance), but its form is not established: {}; it may stand in \
-                 for something outside the vocabulary",
+                "{}, but its form is not established: {}; it may stand in for something \
+                 outside the vocabulary",
+                help.words(),
                 r.why
             );
             mark_kept(&mut found.tried, r.finding.effect);
@@ -77,18 +80,43 @@ pub(crate) fn readmit(
     (found, false)
 }
 
-/// Whether `c` helps `found`'s prediction: without it (the others as fitted) the
-/// held-out rows do worse by at least [`MIN_HELDOUT_GAIN`] and beyond chance.
-fn helps(start: &Start, found: &Found, c: EffectId) -> bool {
+/// How a removed finding helps the predictive model.
+#[derive(Clone, Copy, Debug)]
+enum Help {
+    /// Without it the held-out rows do worse by at least [`MIN_HELDOUT_GAIN`] and
+    /// beyond chance.
+    Predicts,
+    /// Without it the model (the others as fitted) cannot be simulated.
+    HoldsUp,
+}
+
+impl Help {
+    /// Why it is kept, in words.
+    fn words(self) -> &'static str {
+        match self {
+            Help::Predicts => {
+                "it helps prediction (without it the fitted model does worse on the \
+                 held-out rows, beyond chance)"
+            }
+            Help::HoldsUp => {
+                "it is kept for prediction (without it the other findings, as fitted, \
+                 cannot be simulated)"
+            }
+        }
+    }
+}
+
+/// How `c` helps `found`'s prediction, if it does.
+fn helps(start: &Start, found: &Found, c: EffectId) -> Option<Help> {
     let mut without = found.model.clone();
     c.remove(&mut without);
     let Some(e) = simulate(start, &without) else {
-        // the model cannot be simulated without it: it holds the others up
-        return true;
+        return Some(Help::HoldsUp);
     };
     let fig = figures(start.rec, &e, &start.held);
-    found.fig.heldout_score() < (1.0 - MIN_HELDOUT_GAIN) * fig.heldout_score()
-        && clearly_lower(&found.e, &e, &start.held)
+    (found.fig.heldout_score() < (1.0 - MIN_HELDOUT_GAIN) * fig.heldout_score()
+        && clearly_lower(&found.e, &e, &start.held))
+    .then_some(Help::Predicts)
 }
 
 /// The trial that took `c` out now says it is kept as predictive.

@@ -204,6 +204,15 @@ fn physics_beside_an_effect_outside_the_vocabulary_gets_two_answers() {
         heldout(&established)
     );
     assert!((predictive - r.final_.heldout_rms_mm).abs() < 1e-9);
+    // the established physics alone is refitted without the predictive findings, so it
+    // still beats the user's model held out (taken out at their values, the others
+    // leaned on them: on the real recording that model was worse than the nominal)
+    assert!(
+        heldout(&established) < r.baseline.heldout_rms_mm,
+        "established alone {} against the user's {}",
+        heldout(&established),
+        r.baseline.heldout_rms_mm
+    );
     // the learned discrepancy: lower again, an honest band, and what fk applies
     let e = r.empirical.as_ref().expect("an empirical term");
     let band = e.band.expect("a learned discrepancy");

@@ -351,8 +351,8 @@ impl Report {
             .clone_ref(py)
     }
 
-    /// The fitted model with the established findings alone (the predictive ones taken
-    /// out, the others at their fitted values): the robot file `ctr-cli diagnose
+    /// The fitted model with the established findings alone (refitted on the fit rows
+    /// without the predictive ones): the robot file `ctr-cli diagnose
     /// --established-only --out` writes. `fitted` for a report pickled before grades.
     #[getter]
     fn fitted_established(&self, py: Python<'_>) -> Py<Robot> {

@@ -16,22 +16,13 @@ impl Diagnosis {
         }
     }
 
-    /// [`fitted_spec`](Self::fitted_spec) with the established findings alone: the
-    /// predictive ones taken out, the others at their fitted values (not refitted). What
+    /// [`fitted_spec`](Self::fitted_spec) with the established findings alone,
+    /// refitted without the predictive ones ([`Diagnosis::established`]). What
     /// `ctr-cli diagnose --established-only` writes.
     pub fn established_spec(&self, spec: &RobotSpec) -> RobotSpec {
         let mut out = self.fitted_spec(spec);
-        let mut m = self.fitted.clone();
-        for f in self
-            .report
-            .findings
-            .iter()
-            .filter(|f| f.grade == Grade::Predictive)
-        {
-            f.effect.remove(&mut m);
-        }
-        out.model = m.model;
-        out.effects = m.effects;
+        out.model = self.established.model;
+        out.effects = self.established.effects.clone();
         out
     }
 

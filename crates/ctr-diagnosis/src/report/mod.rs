@@ -405,6 +405,9 @@ pub struct Diagnosis {
     pub report: Report,
     /// The user's model with the effects found, fitted.
     pub fitted: ModelSpec,
+    /// The user's model with the established findings alone, refitted without the
+    /// predictive ones (`fitted` when every finding is established).
+    pub established: ModelSpec,
     /// The linear empirical correction as the robot file's `[model.empirical]` (only
     /// when the recording is not explained).
     pub empirical: Option<Correction>,

@@ -40,16 +40,15 @@
 //! Pairs correlated above [`CORRELATED_ABOVE`] are listed: the data tell them apart
 //! only by their difference.
 
+pub(crate) mod attach;
 pub(crate) mod suggest;
 
 use crate::candidates::{EffectId, Label};
 use crate::fit::Problem;
 use crate::quantiles::t975;
 use crate::report::numbers::sig;
-use crate::report::prose::{explain, parameters};
-use crate::report::{Correlated, Finding};
-use ctr_analysis::model::ModelSpec;
-use ctr_formats::{Correction, Recording};
+use crate::report::Correlated;
+use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 use serde_json::Value;
 
@@ -89,9 +88,23 @@ pub(crate) struct Combination {
     pub name: String,
     pub value: f64,
     pub ci95: [f64; 2],
+    /// Its value at the nominal (the user's model, where the effect is not there) when
+    /// both its parameters are of one effect; `None` across effects (it then says
+    /// nothing of either effect alone).
+    pub not_there: Option<f64>,
 }
 
 impl Combination {
+    /// Its entry in a finding's `ci95.identified` (`not_there` where it has one).
+    fn to_json(&self) -> Value {
+        let mut v =
+            serde_json::json!({"combination": self.name, "value": self.value, "ci95": self.ci95});
+        if let (Some(n), Value::Object(m)) = (self.not_there, &mut v) {
+            m.insert("not_there".into(), n.into());
+        }
+        v
+    }
+
     /// `name = value (lo to hi)`.
     fn words(&self) -> String {
         format!(
@@ -494,10 +507,12 @@ impl Assessment {
                 a[j] = 1.0;
                 a[r] = -ratio;
                 let value = a.dot(&DVector::from_column_slice(&self.x));
+                let at_nominal = a.dot(&DVector::from_column_slice(&self.nominal));
+                let one_effect = self.effects[j] == self.effects[r];
                 let half = self.t * (a.transpose() * &self.cov * &a)[(0, 0)].max(0.0).sqrt();
                 let (lj, lr) = (&self.labels[j], &self.labels[r]);
                 let same = (ratio - 1.0).abs() < 0.05;
-                let (name, value, ci95) = if lj.log && lr.log {
+                let (name, value, ci95, at_nominal) = if lj.log && lr.log {
                     let name = if same {
                         format!("{} / {}", lj.name, lr.name)
                     } else {
@@ -507,6 +522,7 @@ impl Assessment {
                         name,
                         value.exp(),
                         [(value - half).exp(), (value + half).exp()],
+                        at_nominal.exp(),
                     )
                 } else {
                     let unit = if lj.unit.is_empty() {
@@ -523,13 +539,14 @@ impl Assessment {
                     } else {
                         format!("{} - {ratio:.3} x {}{unit}", lj.name, lr.name)
                     };
-                    (name, value, [value - half, value + half])
+                    (name, value, [value - half, value + half], at_nominal)
                 };
                 out.push(Combination {
                     effect: self.effects[j],
                     name,
                     value,
                     ci95,
+                    not_there: one_effect.then_some(at_nominal),
                 });
             }
         }
@@ -569,130 +586,4 @@ impl Assessment {
         }
         out
     }
-}
-
-/// What the report says about the uncertainty as a whole.
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Overall {
-    pub method: String,
-    pub identifiability: Vec<String>,
-    pub correlated: Vec<Correlated>,
-}
-
-/// The fit problem of the findings `effects` of `fitted` (torsion has no parameter; a
-/// clearance fitted as a table stays one).
-pub(crate) fn problem_of<'a>(
-    rec: &'a Recording,
-    fitted: &ModelSpec,
-    effects: &[EffectId],
-    rows: &[usize],
-    huber_mm: f64,
-    threads: usize,
-) -> Problem<'a> {
-    let blocks: Vec<EffectId> = effects
-        .iter()
-        .copied()
-        .filter(|e| *e != EffectId::Torsion)
-        .collect();
-    let clearance_table = fitted
-        .effects
-        .clearance
-        .as_ref()
-        .filter(|c| !c.table_deg.is_empty() && blocks.contains(&EffectId::Clearance))
-        .and_then(|c| c.table_deg.first().map(Vec::len));
-    Problem {
-        base: fitted.clone(),
-        blocks,
-        rec,
-        rows: rows.to_vec(),
-        huber_mm,
-        threads,
-        clearance_table,
-    }
-}
-
-/// Gives every finding its `ci95` (and `identified` combinations), at `fitted` against
-/// the user's model `user`; returns the model with what is not identified set to the
-/// nominal (the findings' parameters rewritten from it) and the report's overall words.
-/// `assessed`, when given, is `problem`'s assessment already computed.
-pub(crate) fn attach(
-    problem: &Problem,
-    user: &ModelSpec,
-    findings: &mut [Finding],
-    assessed: Option<Assessment>,
-    remainder: Option<&Correction>,
-) -> (ModelSpec, Overall, Option<Assessment>) {
-    let x = problem.read(&problem.base);
-    let nominal = problem.read(user);
-    let Some(a) = assessed.or_else(|| Assessment::new(problem, &x, &nominal)) else {
-        for f in findings.iter_mut() {
-            f.ci95 = Value::Null;
-        }
-        let overall = Overall {
-            method: if x.is_empty() {
-                "no fitted parameter".into()
-            } else {
-                "not computed: the fitted model cannot be simulated for the Jacobian".into()
-            },
-            identifiability: Vec::new(),
-            correlated: Vec::new(),
-        };
-        return (problem.base.clone(), overall, None);
-    };
-    let model = problem.model(&a.x);
-    let mut at = 0;
-    let mut ranges = Vec::new();
-    for &b in &problem.blocks {
-        let len = problem.block_len(b);
-        ranges.push((b, at, len));
-        at += len;
-    }
-    let combos = a.combinations();
-    let alt = remainder.and_then(|c| a.with_remainder(problem, c));
-    for f in findings.iter_mut() {
-        f.parameters = parameters(f.effect, &model);
-        f.explanation = explain(f.effect, &model);
-        let Some(&(b, at, len)) = ranges.iter().find(|r| r.0 == f.effect) else {
-            f.ci95 = f.parameters.clone();
-            continue;
-        };
-        let mut ci = a.ci95(problem, b, at, len, alt.as_ref());
-        let mine: Vec<Value> = combos
-            .iter()
-            .filter(|c| c.effect == b)
-            .map(|c| serde_json::json!({"combination": c.name, "value": c.value, "ci95": c.ci95}))
-            .collect();
-        if let (false, Value::Object(m)) = (mine.is_empty(), &mut ci) {
-            m.insert("identified".into(), Value::Array(mine));
-        }
-        f.ci95 = ci;
-        let words: Vec<String> = combos
-            .iter()
-            .filter(|c| c.effect == b)
-            .map(Combination::words)
-            .collect();
-        if !words.is_empty() {
-            f.explanation += &format!(
-                " The data identify only {}; the values alone are not identified (kept at \
-                 the nominal along the direction the data cannot see).",
-                words.join(", ")
-            );
-        }
-    }
-    let mut method = a.method.clone();
-    if let Some(alt) = &alt {
-        method += &format!(
-            "; the report does not explain the residual: each interval is joined with the \
-             one of the parameters refitted together with the {} terms of the empirical \
-             correction (Gauss-Newton with the Jacobian at the fit; sd from the joint \
-             information and the residual both leave): what the remainder can move them by",
-            alt.terms
-        );
-    }
-    let overall = Overall {
-        method,
-        identifiability: a.statements(&combos),
-        correlated: a.correlated(),
-    };
-    (model, overall, Some(a))
 }

@@ -29,8 +29,14 @@ impl Context<'_> {
         if !self.checks.identified {
             return (Vec::new(), None);
         }
-        let problem =
-            uncertainty::problem_of(self.rec, m, accepted, fit_rows, self.huber_mm, self.threads);
+        let problem = uncertainty::attach::problem_of(
+            self.rec,
+            m,
+            accepted,
+            fit_rows,
+            self.huber_mm,
+            self.threads,
+        );
         let x = problem.read(m);
         let nominal = problem.read(user);
         let Some(a) = Assessment::new(&problem, &x, &nominal) else {

@@ -447,7 +447,9 @@ correction of as many parameters in its place (the yardstick it beat; ``None`` f
 torsion and for :func:`calibrate`), and ``ci95``: the 95 % intervals of ``parameters``
 (the same keys and shapes, each number replaced by ``[lo, hi]`` in its unit,
 ``[None, None]`` where the data set no bound), with ``identified``, a list of
-``{"combination": str, "value": float, "ci95": [lo, hi]}``, where only a combination
+``{"combination": str, "value": float, "ci95": [lo, hi]}`` (and ``"not_there"``,
+the combination's value where the effect is not there, when both its parameters are
+the finding's own), where only a combination
 of the parameters is identified (the ratio of two tubes' stiffness factors), and
 ``equally_explained_by``: a list of ``{"effect": EffectId, "heldout_rms_mm": float}``,
 the other effects that explained the same residual as well when it was added (the data
@@ -590,7 +592,8 @@ class Report:
     def fitted(self) -> Robot:
         """The fitted model: the robot with its ``[model]`` and the effects found (or
         calibrated) in ``[model.effects]``, fitted. ``fitted.to_toml()`` is the file
-        ``ctr-cli diagnose --out`` writes, without its comment line;
+        ``ctr-cli diagnose --out`` writes, without its comment lines (what fitted it,
+        and the findings by grade);
         ``fitted.fk(recording.joints)`` (per run with ``t_s=`` for time effects)
         gives the model's tips. Its :attr:`Robot.source` is the robot's with
         ``" (fitted)"``."""
@@ -598,7 +601,7 @@ class Report:
     def fitted_with_empirical(self) -> Robot:
         """The fitted model with the report's labelled empirical correction in
         ``[model.empirical]`` (after any terms the robot file had): the file
-        ``ctr-cli diagnose --with-empirical --out`` writes, without its comment line;
+        ``ctr-cli diagnose --with-empirical --out`` writes, without its comment lines;
         its ``fk`` applies the correction as ``ctr-cli fk`` does. The same as
         :attr:`fitted` when the recording is explained (no empirical term). Where the
         report's empirical term is the learned discrepancy (``report["empirical"]``
@@ -607,9 +610,10 @@ class Report:
         predict, not to read causes from."""
     @property
     def fitted_established(self) -> Robot:
-        """The fitted model with the established findings alone (the predictive ones
-        taken out, the others at their fitted values): the file ``ctr-cli diagnose
-        --established-only --out`` writes, without its comment lines."""
+        """The fitted model with the established findings alone, refitted on the fit
+        rows without the predictive ones (whose values the others may have leaned on):
+        the file ``ctr-cli diagnose --established-only --out`` writes, without its
+        comment lines."""
     @property
     def recording(self) -> str:
         """The recording's file name."""
@@ -679,8 +683,11 @@ class Report:
     @property
     def empirical(self) -> Optional[dict[str, Any]]:
         """The labelled empirical correction fitted on top of the physics for what is
-        left (``method``, ``terms``, ``rms_mm``, ``heldout_rms_mm``, ``dominant``), or
-        ``None`` when the recording is explained. Not physics."""
+        left (``method``, ``terms``, ``rms_mm``, ``heldout_rms_mm``, ``dominant``; the
+        learned discrepancy also ``inputs``, each with its ``length_scale``, and
+        ``band``: ``median_sd_mm``, ``signal_mm``, ``noise_mm`` and
+        ``heldout_coverage_95``), or ``None`` when the recording is explained. Not
+        physics."""
     def __eq__(self, other: object) -> bool: ...
     def to_html(self) -> str:
         """The report as one self-contained HTML page: the verdict, the findings with
