@@ -39,36 +39,13 @@ done
 
 echo "generating $ROWS joint rows (trajectory and scattered) ..." >&2
 python3 - "$WORK" "$ROWS" <<'EOF'
-import math, random, sys
+import sys
+sys.path.insert(0, 'scripts')
+from bench_joints import scattered, trajectory, write_csv
 work, rows = sys.argv[1], int(sys.argv[2])
-inc = [(10.0, 50.0)] * 3
-header = 'label,s1_mm,theta1_deg,s2_mm,theta2_deg,s3_mm,theta3_deg\n'
-
-def trajectory(n, cycles, turn):
-    # every joint a sinusoid; `cycles` periods of the slowest over n rows
-    for k in range(n):
-        t = 2 * math.pi * cycles * k / n
-        s, row = 0.0, []
-        for i, (lo, hi) in enumerate(inc):
-            f = 1.0 + i
-            s += 0.5 * (lo + hi) + 0.4 * (hi - lo) * math.sin(f * t + 0.3 * f)
-            row += [s, turn * math.sin(0.5 * f * t + f)]
-        yield row
-
-def scattered(n, seed):
-    rnd = random.Random(seed)
-    for _ in range(n):
-        s, row = 0.0, []
-        for lo, hi in inc:
-            s += lo + (hi - lo) * rnd.random()
-            row += [s, 360.0 * rnd.random() - 180.0]
-        yield row
 
 def write(name, rows):
-    with open(f'{work}/{name}', 'w') as f:
-        f.write(header)
-        for k, row in enumerate(rows):
-            f.write(f'r{k},' + ','.join(repr(v) for v in row) + '\n')
+    write_csv(f'{work}/{name}', rows)
 
 # fk: 1 kHz samples of a motion with a 20 s period (tip speed about 20 mm/s)
 write('fk-trajectory.csv', trajectory(rows, rows / 20000, 170.0))

@@ -35,25 +35,16 @@ if [ "${KEEP:-0}" = 1 ]; then echo "work directory: $WORK" >&2; else trap 'rm -r
 
 echo "generating joint files ..." >&2
 python3 - "$WORK" "$ROWS" "${BIG:-0}" <<'EOF'
-import math, sys
+import sys
+sys.path.insert(0, 'scripts')
+from bench_joints import COLUMNS as header, trajectory, write_csv
 work, rows, big = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
-header = ['label'] + [f'{j}{i}_{u}' for i in (1, 2, 3) for j, u in (('s', 'mm'), ('theta', 'deg'))]
 
 def rows_of(n):
-    # every joint a sinusoid inside the stable ranges (10 <= increments <= 50 mm)
-    for k in range(n):
-        t = 2 * math.pi * k / 20000
-        s, row = 0.0, []
-        for i in range(3):
-            f = 1.0 + i
-            s += 30 + 16 * math.sin(f * t + 0.3 * f)
-            row += [s, 170 * math.sin(0.5 * f * t + f)]
-        yield k, row
+    # 1 kHz samples of a motion with a 20 s period, as scripts/bench.sh's
+    return enumerate(trajectory(n, n / 20000, 170.0))
 
-with open(f'{work}/joints.csv', 'w') as f:
-    f.write(','.join(header) + '\n')
-    for k, row in rows_of(rows):
-        f.write(f'r{k},' + ','.join(repr(v) for v in row) + '\n')
+write_csv(f'{work}/joints.csv', trajectory(rows, rows / 20000, 170.0))
 try:
     import pyarrow as pa, pyarrow.parquet as pq
 except ImportError:
