@@ -2,13 +2,13 @@
 //! positions cannot, a tangent's noise is estimated from the data, very noisy angles
 //! weigh (almost) nothing, and a bad tangent row is refused with its place.
 
+mod common;
+
+use common::angular::{angular_recording, angular_spec, positions_only, SIGMA_MM};
 use ctr_analysis::model::ModelSpec;
-use ctr_diagnosis::synth::{generate, Ranges, SynthSpec};
 use ctr_diagnosis::{diagnose, Diagnosis, EffectId, Options};
 use ctr_formats::{AngularColumns, JointOffset, Recording, RobotSpec};
 
-/// Tracker noise of the positions, mm per axis.
-const SIGMA_MM: f64 = 0.2;
 /// Noise of the angular columns, degrees per component.
 const SIGMA_DEG: f64 = 0.3;
 /// A noise estimate must be within this fraction of the noise planted.
@@ -45,33 +45,7 @@ fn with_rotation_offsets(rotation_deg: [f64; 2]) -> ModelSpec {
 
 /// A short seeded recording of `world` measuring `angular` with `sigma_deg`.
 fn record(world: &ModelSpec, angular: AngularColumns, sigma_deg: f64, seed: u64) -> Recording {
-    let ranges = Ranges {
-        increments_mm: vec![[20.0, 60.0], [20.0, 80.0]],
-        theta_deg: [-180.0, 180.0],
-    };
-    let spec = SynthSpec {
-        seed,
-        noise_sigma_mm: SIGMA_MM,
-        feed_steps: 20,
-        rotation_step_deg: 12.0,
-        walk_rows: 120,
-        angular: Some(angular),
-        angular_noise_sigma_deg: sigma_deg,
-        ..SynthSpec::default()
-    };
-    let out = generate(world, &ranges, &spec).unwrap();
-    assert_eq!(out.failed, 0);
-    out.recording
-}
-
-/// `rec` without its angular columns.
-fn positions_only(rec: &Recording) -> Recording {
-    let mut out = rec.clone();
-    for r in &mut out.rows {
-        r.quaternion = None;
-        r.tangent = None;
-    }
-    out
+    angular_recording(world, &angular_spec(seed, angular, sigma_deg))
 }
 
 fn found(d: &Diagnosis) -> Vec<EffectId> {

@@ -10,6 +10,7 @@
 
 mod common;
 
+use common::angular::{angular_recording, angular_spec, positions_only};
 use common::recording;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::predict;
@@ -17,8 +18,6 @@ use ctr_diagnosis::synth::{generate, Ranges, SynthSpec, Unmodelled};
 use ctr_diagnosis::{calibrate, diagnose, split, EffectId, Grade, Options};
 use ctr_formats::{AngularColumns, Friction, Latency, Recording, RobotSpec, SensorRotation};
 
-/// Tracker noise of the positions, mm per axis.
-const SIGMA_MM: f64 = 0.2;
 /// Noise of the tangent columns, degrees per component.
 const SIGMA_DEG: f64 = 0.2;
 
@@ -40,34 +39,12 @@ fn two_tubes() -> ModelSpec {
 /// A seeded recording of `world` with its tangents, and `unmodelled` effects outside
 /// the vocabulary.
 fn record(world: &ModelSpec, seed: u64, unmodelled: Vec<Unmodelled>) -> Recording {
-    let ranges = Ranges {
-        increments_mm: vec![[20.0, 60.0], [20.0, 80.0]],
-        theta_deg: [-180.0, 180.0],
-    };
     let spec = SynthSpec {
-        seed,
-        noise_sigma_mm: SIGMA_MM,
-        feed_steps: 20,
-        rotation_step_deg: 12.0,
         walk_rows: 160,
-        angular: Some(AngularColumns::Tangent),
-        angular_noise_sigma_deg: SIGMA_DEG,
         unmodelled,
-        ..SynthSpec::default()
+        ..angular_spec(seed, AngularColumns::Tangent, SIGMA_DEG)
     };
-    let out = generate(world, &ranges, &spec).unwrap();
-    assert_eq!(out.failed, 0);
-    out.recording
-}
-
-/// `rec` without its angular columns.
-fn positions_only(rec: &Recording) -> Recording {
-    let mut out = rec.clone();
-    for r in &mut out.rows {
-        r.quaternion = None;
-        r.tangent = None;
-    }
-    out
+    angular_recording(world, &spec)
 }
 
 #[test]

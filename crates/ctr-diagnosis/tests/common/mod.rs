@@ -5,6 +5,7 @@
 
 use ctr_diagnosis::Report;
 
+pub mod angular;
 pub mod coverage;
 
 #[path = "../../../ctr-analysis/tests/common/mod.rs"]
