@@ -35,6 +35,7 @@ pub mod ik;
 pub mod job;
 pub mod learned;
 pub mod limits;
+pub mod linearised;
 pub mod margin;
 pub mod model;
 pub mod rng;

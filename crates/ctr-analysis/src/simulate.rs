@@ -128,19 +128,24 @@ pub fn predict_rows(
     rec: &Recording,
     rows: &[usize],
 ) -> Result<Prediction, SimError> {
-    let runs: Vec<usize> = (0..rec.runs.len())
+    let runs = runs_holding(rec, rows);
+    let mut keep = vec![false; rec.rows.len()];
+    for &r in rows {
+        keep[r] = true;
+    }
+    simulate(model, rec, &runs, |row| keep[row], false)
+}
+
+/// The runs of `rec` that hold one of `rows` (ascending row indices).
+pub(crate) fn runs_holding(rec: &Recording, rows: &[usize]) -> Vec<usize> {
+    (0..rec.runs.len())
         .filter(|&r| {
             let range = &rec.runs[r].rows;
             // the first listed row at or after the run's start lies inside it
             let at = rows.partition_point(|&row| row < range.start);
             rows.get(at).is_some_and(|row| range.contains(row))
         })
-        .collect();
-    let mut keep = vec![false; rec.rows.len()];
-    for &r in rows {
-        keep[r] = true;
-    }
-    simulate(model, rec, &runs, |row| keep[row], false)
+        .collect()
 }
 
 /// The runs `runs` simulated, the rows `keep` says solved, with margins if `margins`.

@@ -278,6 +278,34 @@ impl Bound<'_> {
         })
     }
 
+    /// [`fk`](Self::fk) of a row without a tip force, with the joint Jacobian of the tip
+    /// as measured written into `columns`: `2 n` columns in file order and units (per
+    /// mm of feed, per degree of rotation), entries 0..3 the position's, 3..6 the tip
+    /// frame's angular velocity in the measuring frame. The core's analytic Jacobian:
+    /// under gravity it has none ([`SolveError::Unsupported`]). No stability margin.
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count.
+    pub fn fk_jacobian(
+        &mut self,
+        actual: &[f64],
+        columns: &mut Vec<[f64; 6]>,
+    ) -> Result<FkResult, SolveError> {
+        let per_degree = 1f64.to_radians();
+        each_count!(self, |k, s| {
+            let q = joints_of(actual);
+            let mut jac = JointJacobian::nan();
+            k.jacobian(s, q, &mut jac).map(|sol| {
+                columns.clear();
+                for (feed, rotation) in jac.feed.iter().zip(&jac.rotation) {
+                    columns.push(core::array::from_fn(|a| feed[a]));
+                    columns.push(core::array::from_fn(|a| rotation[a] * per_degree));
+                }
+                FkResult::from_solution(&sol, f64::NAN)
+            })
+        })
+    }
+
     /// [`fk`](Self::fk) with the backbone points (x, y, z, mm, from the guide exit to
     /// the tip) in the measuring frame.
     ///

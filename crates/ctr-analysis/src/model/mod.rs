@@ -574,6 +574,35 @@ impl RowSolver<'_> {
         self.bound.fk(actual, force_n, self.margins)
     }
 
+    /// [`fk_actual`](Self::fk_actual) of a row without a tip force, with the joint
+    /// Jacobian of the tip as measured in `columns`: `2 n` columns in file order and
+    /// units (per mm, per degree), entries 0..3 `d position`, 3..6 the tip frame's
+    /// angular velocity in the measuring frame. The core's analytic Jacobian
+    /// ([`SolveError::Unsupported`] under gravity, where it has none); no margin.
+    ///
+    /// ```
+    /// use ctr_analysis::model::ModelSpec;
+    /// use ctr_formats::AnyRobot;
+    /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
+    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
+    /// let mut columns = Vec::new();
+    /// let tip = rows.solver().fk_jacobian(&[50.0, 30.0], &mut columns)?;
+    /// assert!((tip.position[2] - 50.0).abs() < 1e-12);
+    /// assert!((columns[0][2] - 1.0).abs() < 1e-9); // feeding moves the tip along z
+    /// assert!((columns[1][5] - 1f64.to_radians()).abs() < 1e-12); // turning spins it
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Panics
+    /// If `actual.len() != 2 * n_tubes`.
+    pub fn fk_jacobian(
+        &mut self,
+        actual: &[f64],
+        columns: &mut Vec<[f64; 6]>,
+    ) -> Result<FkResult, SolveError> {
+        self.bound.fk_jacobian(actual, columns)
+    }
+
     /// [`fk`](Self::fk) with the backbone: the points (x, y, z, mm) from the guide exit
     /// to the tip, one per integration step, in the measuring frame (the registration
     /// applied, as to the tip). For models without time effects.
