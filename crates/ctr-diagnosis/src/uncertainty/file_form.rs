@@ -207,7 +207,9 @@ impl<'a> FileForm<'a> {
     fn unwrap(&self, o: usize, v: f64) -> f64 {
         let base = &self.base;
         if self.degrees[o] {
-            base[o] + (v - base[o] + 180.0).rem_euclid(360.0) - 180.0
+            // the turn's difference first: `base + d - 180` would round `base + d` and
+            // give a value that moved nothing a rounding error's derivative
+            base[o] + ((v - base[o] + 180.0).rem_euclid(360.0) - 180.0)
         } else {
             v
         }

@@ -185,6 +185,26 @@ pub(crate) fn pseudo_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, Vec<DVector<f64
     (&dm * s_pinv * &dm, null, d)
 }
 
+/// A parameter whose natural step ([`Problem::scale`]) moves the predictions by less
+/// than this RMS, mm, moves nothing: its Jacobian column is rounding (a straight tube's
+/// rotation, which turns nothing), and scaled to a unit diagonal it would pass for a
+/// direction of its own.
+pub const NEGLIGIBLE_MOVE_MM: f64 = 1e-9;
+
+/// `jac` with the columns of parameters that move nothing ([`NEGLIGIBLE_MOVE_MM`])
+/// set to zero: not identified, whether the column came out as rounding or as zeros.
+fn without_negligible_columns(mut jac: DMatrix<f64>, problem: &Problem) -> DMatrix<f64> {
+    let rows = jac.nrows().max(1) as f64;
+    for j in 0..jac.ncols() {
+        let step = problem.scale(j).0;
+        let rms = jac.column(j).norm() / rows.sqrt() * step;
+        if rms < NEGLIGIBLE_MOVE_MM {
+            jac.column_mut(j).fill(0.0);
+        }
+    }
+    jac
+}
+
 /// The parameters taking part in a direction `u` not identified: components of at
 /// least [`PART_OF_DIRECTION`] of its largest.
 pub(crate) fn parts(u: &DVector<f64>) -> Vec<usize> {
@@ -412,7 +432,7 @@ impl Assessment {
         let p0 = problem.predictions(x)?;
         let e = problem.errors(&p0);
         let (cost, w) = problem.cost(&e);
-        let jac = problem.jacobian(x, &p0)?;
+        let jac = without_negligible_columns(problem.jacobian(x, &p0)?, problem);
         let h = information(&jac, &w, np);
         let (h_pinv, null_scaled, d) = pseudo_inverse(&h);
         let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
