@@ -154,6 +154,22 @@ impl EffectId {
         }
     }
 
+    /// True for the effects that leave the mechanics alone: on the joints (joint
+    /// offsets, latency, the play friction) or on the measurement (sensor offset and
+    /// rotation, registration). A fit's Jacobian takes their columns from the joint
+    /// Jacobian and the measurement ([`ctr_analysis::linearised`]), without solving.
+    pub(crate) fn leaves_mechanics(self) -> bool {
+        matches!(
+            self,
+            EffectId::Friction
+                | EffectId::JointOffset
+                | EffectId::Latency
+                | EffectId::Registration
+                | EffectId::SensorOffset
+                | EffectId::SensorRotation
+        )
+    }
+
     /// Number of parameters for a robot of `n` tubes.
     pub fn n_params(self, n: usize) -> usize {
         let pairs = n.saturating_sub(1);

@@ -14,14 +14,15 @@
 //! `w_i = min(1, c / |e_i|)`). The Jacobian of the predictions with respect to the
 //! parameters comes from the simulator by central differences at each parameter's
 //! natural scale (one-sided at a bound), its columns computed in parallel
-//! ([`ctr_formats::parallel::map`], one column per job). Each step solves
+//! ([`crate::jacobian`]: without solving for the effects that leave the mechanics
+//! alone). Each step solves
 //! `(J^T W J + lambda D) d = -J^T W e`; when the step leaves the parameters' bounds it
 //! is solved again as a box-constrained QP with clarabel.
 
 use crate::candidates::EffectId;
 use crate::residual::angular_errors;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict_rows;
+use ctr_analysis::simulate::{predict_rows, Prediction};
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 
@@ -53,7 +54,7 @@ pub(crate) const MAX_FIT_ITERATIONS: usize = 25;
 const TABLE_SMOOTHNESS_MM_PER_DEG: f64 = 2.0;
 
 impl Problem<'_> {
-    fn table(&self, b: EffectId) -> Option<usize> {
+    pub(crate) fn table(&self, b: EffectId) -> Option<usize> {
         self.clearance_table.filter(|_| b == EffectId::Clearance)
     }
 
@@ -222,12 +223,18 @@ impl Problem<'_> {
     /// simulated on them (joints pushed out of range, ...).
     pub fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
         let pred = predict_rows(&self.model(x), self.rec, &self.rows).ok()?;
+        self.assembled(&pred, x)
+    }
+
+    /// [`predictions`](Self::predictions) laid out from a prediction `pred` of the
+    /// model at `x`.
+    pub(crate) fn assembled(&self, pred: &Prediction, x: &[f64]) -> Option<Vec<f64>> {
         let mut out = Vec::with_capacity(3 * self.rows.len());
         for &r in &self.rows {
             out.extend_from_slice(&pred.p[r]);
         }
         if self.rec.angular.is_some() {
-            let ang = angular_errors(self.rec, &pred);
+            let ang = angular_errors(self.rec, pred);
             for &r in &self.rows {
                 out.extend_from_slice(&ang[r]);
             }
@@ -272,58 +279,6 @@ impl Problem<'_> {
     pub fn cost_at(&self, x: &[f64]) -> Option<f64> {
         let p = self.predictions(x)?;
         Some(self.cost(&self.errors(&p)).0)
-    }
-
-    /// Jacobian of the predictions by central differences (one-sided at a bound, or
-    /// where one side cannot be simulated).
-    pub fn jacobian(&self, x: &[f64], p0: &[f64]) -> Option<DMatrix<f64>> {
-        Some(self.jacobian_and_blocked(x, p0).0)
-    }
-
-    /// [`jacobian`](Self::jacobian), and for each parameter whether the model cannot be
-    /// simulated a step up / down from `x` (a feed offset pushing a joint past its
-    /// tube's end): the fit's steps hold it there on that side.
-    fn jacobian_and_blocked(&self, x: &[f64], p0: &[f64]) -> (DMatrix<f64>, Vec<[bool; 2]>) {
-        let np = x.len();
-        let m = p0.len();
-        let column = |j: usize| -> (Vec<f64>, [bool; 2]) {
-            let (h, (lo, hi)) = self.scale(j);
-            let up = if x[j] + h > hi { 0.0 } else { h };
-            let down = if x[j] - h < lo { 0.0 } else { h };
-            // a side the model cannot be simulated on is left out: one-sided there, a
-            // zero column (the parameter cannot move) where neither side can
-            let side = |d: f64| -> Option<Vec<f64>> {
-                let mut xs = x.to_vec();
-                xs[j] += d;
-                (d != 0.0).then(|| self.predictions(&xs)).flatten()
-            };
-            let (pp, pm) = (side(up), side(-down));
-            let blocked = [up > 0.0 && pp.is_none(), down > 0.0 && pm.is_none()];
-            let (up, down) = (
-                if pp.is_some() { up } else { 0.0 },
-                if pm.is_some() { down } else { 0.0 },
-            );
-            if up == 0.0 && down == 0.0 {
-                return (vec![0.0; m], blocked);
-            }
-            let (pp, pm) = (pp.as_deref().unwrap_or(p0), pm.as_deref().unwrap_or(p0));
-            let col = pp
-                .iter()
-                .zip(pm)
-                .map(|(a, b)| (a - b) / (up + down))
-                .collect();
-            (col, blocked)
-        };
-        // one column per item; `threads` is at least 1 (0 would mean all cores)
-        let columns: Vec<usize> = (0..np).collect();
-        let cols = ctr_formats::parallel::map(&columns, self.threads.max(1), |&j| column(j));
-        let mut jac = DMatrix::zeros(m, np);
-        let mut blocked = Vec::with_capacity(np);
-        for (j, (c, b)) in cols.into_iter().enumerate() {
-            jac.set_column(j, &DVector::from_vec(c));
-            blocked.push(b);
-        }
-        (jac, blocked)
     }
 
     /// Levenberg-Marquardt from `x0` (clamped to the bounds) for at most `max_iter`

@@ -60,7 +60,8 @@
 //! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
 //! outliers), `residual` (error vectors and their figures), `angular` (the angular
 //! columns' errors and noise), `weighting` (their weight against the positions),
-//! `robust` (the median and its spread), [`locate`], `candidates`
+//! `robust` (the median and its spread), [`locate`], `jacobian` (the fits'
+//! Jacobian), `candidates`
 //! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose`]),
 //! `empirical` (the generic basis and matching pursuit), `verify` (the checks of a
 //! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
@@ -86,6 +87,7 @@ mod finish;
 mod fit;
 mod found;
 mod grade;
+mod jacobian;
 pub mod locate;
 mod options;
 mod paired;
