@@ -90,22 +90,25 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
     );
     let screened = ctr_formats::parallel::map(&jobs, start.threads, |(c, x0)| screen.fit(*c, x0));
     let ranked = screen.rank(&todo, &jobs, screened, start.threads);
+    // which are fitted in full depends on the screen alone: they are fitted side by
+    // side, each on its share of the threads (the results do not depend on it)
+    let mut on_screen = Vec::new();
+    let mut to_fit = Vec::new();
+    for r in &ranked {
+        match screen_note(&screen, r, to_fit.len(), n) {
+            Some(note) => on_screen.push((r, note)),
+            None => to_fit.push(r),
+        }
+    }
+    let each = (start.threads / to_fit.len().max(1)).max(1);
+    let fitted = ctr_formats::parallel::map(&to_fit, start.threads, |r| {
+        full_fit(start, found, round, r, each)
+    });
     let mut verdicts = Vec::new();
     let mut passing = Vec::new();
-    let mut on_screen = Vec::new();
-    let mut full_fits = 0;
-    for r in &ranked {
-        match screen_note(&screen, r, full_fits, n) {
-            Some(note) => on_screen.push((r, note)),
-            None => {
-                full_fits += 1;
-                let (trial, pass) = full_fit(start, found, round, r);
-                if let Some(p) = pass {
-                    passing.push(p);
-                }
-                verdicts.push(trial);
-            }
-        }
+    for (trial, pass) in fitted {
+        passing.extend(pass);
+        verdicts.push(trial);
     }
     verdicts.extend(judged_on_screen(start, &screen, round, on_screen));
     // the trials in the candidates' order
@@ -169,12 +172,20 @@ fn screen_note(screen: &Screen, r: &Screened, full_fits: usize, n: usize) -> Opt
 
 /// Candidate `r` fitted in full from where its screen ended, with the effects found so
 /// far free (a first effect that soaked up part of another must be able to give it
-/// back), and judged: its trial, and the candidate when both tests accept it.
-fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial, Option<Passing>) {
+/// back), on `threads`, and judged: its trial, and the candidate when both tests
+/// accept it.
+fn full_fit(
+    start: &Start,
+    found: &Found,
+    round: usize,
+    r: &Screened,
+    threads: usize,
+) -> (Trial, Option<Passing>) {
     let c = r.effect;
     let k = c.n_params(start.user.robot.n_tubes());
     let blocks: Vec<EffectId> = found.effects().into_iter().chain([c]).collect();
-    let p = start.problem(found.model.clone(), blocks);
+    let mut p = start.problem(found.model.clone(), blocks);
+    p.threads = threads;
     let x: Vec<f64> = found
         .parameters_in(&found.model)
         .into_iter()
