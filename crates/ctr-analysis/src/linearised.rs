@@ -18,7 +18,8 @@
 //!   `Effects::measured`, `p = R_reg (p_tip + R_tip d) + t`), exactly.
 //!
 //! [`Linearised::new`] solves the rows of a model once without its measurement, with
-//! the core's analytic joint Jacobian ([`crate::model::RowSolver::fk_jacobian`]);
+//! the core's analytic joint Jacobian ([`crate::model::RowSolver::fk_jacobian`]; under
+//! a load, where the core has none, central differences of warm solves);
 //! [`Linearised::predict`] then gives the prediction of any model that differs from it
 //! only in those six effects, at the cost of the time effects along the runs and no
 //! solve. The central difference of two such predictions is the chain rule
@@ -26,11 +27,11 @@
 //! in the measurement): the diagnosis's fits take these columns of their Jacobian
 //! from here instead of two solves of every row per parameter.
 
-use crate::model::{ModelSpec, RowModel};
+use crate::model::{ModelSpec, RowModel, RowSolver};
 use crate::simulate::{Prediction, SimError};
 use crate::timeline::actual_joints;
 use ctr_core::{Frame, SolveError};
-use ctr_formats::{canonical_quaternion, Recording};
+use ctr_formats::{canonical_quaternion, FkResult, Recording};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector3};
 
 /// The mechanics of `model`: without the effects on the joints and the measurement.
@@ -76,10 +77,12 @@ pub struct Linearised {
 impl Linearised {
     /// The rows `rows` (ascending; their runs simulated whole for the time effects, as
     /// [`crate::simulate::predict_rows`] does) of `model` solved without its
-    /// measurement, with their joint Jacobians. `Ok(None)` where the model has no
-    /// analytic joint Jacobian or is more than mechanics, joints and measurement:
-    /// gravity or a recorded tip force (loaded solves), a learned discrepancy or an
-    /// empirical correction (on the commanded joints, after the measurement).
+    /// measurement, with their joint Jacobians: the core's analytic one, or under a
+    /// load (gravity, a recorded tip force), where the core has none, central
+    /// differences of warm solves at [`PROBE_MM`] / [`PROBE_DEG`] (one-sided where a
+    /// probe leaves the robot's ranges). `Ok(None)` where the model is more than
+    /// mechanics, joints and measurement: a learned discrepancy or an empirical
+    /// correction (on the commanded joints, after the measurement).
     ///
     /// ```
     /// use ctr_analysis::{linearised::Linearised, model::ModelSpec, simulate::predict};
@@ -102,13 +105,10 @@ impl Linearised {
         rec: &Recording,
         rows: &[usize],
     ) -> Result<Option<Self>, SimError> {
-        let loaded = model.effects.gravity.is_some()
-            || rows
-                .iter()
-                .any(|&r| rec.rows[r].force_n.iter().any(|&f| f != 0.0));
-        if loaded || model.discrepancy.is_some() || model.empirical.is_some() {
+        if model.discrepancy.is_some() || model.empirical.is_some() {
             return Ok(None);
         }
+        let loaded = loaded(model, rec, rows);
         let unmeasured = without_measurement(model);
         let row_model = unmeasured.rows().map_err(SimError::Model)?;
         let width = 2 * model.robot.n_tubes();
@@ -137,7 +137,13 @@ impl Linearised {
                     continue;
                 }
                 let a = &actual[k];
-                let tip = match solver.fk_jacobian(a, &mut columns) {
+                let force = rec.rows[row].force_n;
+                let solve = if loaded {
+                    probed(&mut solver, a, force, &mut columns)
+                } else {
+                    solver.fk_jacobian(a, &mut columns)
+                };
+                let tip = match solve {
                     Ok(tip) => tip,
                     Err(SolveError::Unsupported(_)) => return Ok(None),
                     Err(SolveError::Joint(error)) => return Err(SimError::Joint { row, error }),
@@ -149,6 +155,20 @@ impl Linearised {
             }
         }
         Ok(Some(out))
+    }
+
+    /// What [`new`](Self::new) costs per row, in solves of the row: about 3 with the
+    /// core's analytic joint Jacobian, `1 + 4 n` under a load (its probes); `None`
+    /// where `model` is not linearised. A fit's Jacobian linearises only where this is
+    /// below the two solves per parameter it saves.
+    pub fn solves_per_row(model: &ModelSpec, rec: &Recording, rows: &[usize]) -> Option<f64> {
+        if model.discrepancy.is_some() || model.empirical.is_some() {
+            None
+        } else if loaded(model, rec, rows) {
+            Some((1 + 2 * 2 * model.robot.n_tubes()) as f64)
+        } else {
+            Some(ANALYTIC_SOLVES)
+        }
     }
 
     /// The prediction of `model` on the rows solved: their actual joints from its own
@@ -206,6 +226,62 @@ impl Linearised {
         }
         Ok(Some(out))
     }
+}
+
+/// Cost of a row solved with the core's analytic joint Jacobian, in plain solves
+/// (measured: 3.0-3.2x on the real three-tube and a generated recording).
+const ANALYTIC_SOLVES: f64 = 3.0;
+/// Probe step of a feed under a load, mm: the central difference's truncation
+/// (relative ~1e-6 on millimetre-scale curvature) and the solver's residual over the
+/// step (~1e-9) both far below what a fit's step needs.
+pub const PROBE_MM: f64 = 1e-3;
+/// Probe step of a rotation under a load, degrees (as [`PROBE_MM`]).
+pub const PROBE_DEG: f64 = 1e-3;
+
+/// Whether the rows `rows` of `model` are solved under a load (gravity, a tip force).
+fn loaded(model: &ModelSpec, rec: &Recording, rows: &[usize]) -> bool {
+    model.effects.gravity.is_some()
+        || rows
+            .iter()
+            .any(|&r| rec.rows[r].force_n.iter().any(|&f| f != 0.0))
+}
+
+/// The row `a` (actual joints, file units) under the tip force `force` solved by
+/// `solver` (which moves on to it), with the joint Jacobian of its tip in `columns`
+/// by central differences of warm solves from it (one-sided where a probe leaves the
+/// robot's ranges; a zero column where both do).
+fn probed(
+    solver: &mut RowSolver,
+    a: &[f64],
+    force: [f64; 3],
+    columns: &mut Vec<[f64; 6]>,
+) -> Result<FkResult, SolveError> {
+    let tip = solver.fk_actual(a, force)?;
+    let at = frame_of(tip.position, tip.quaternion);
+    columns.clear();
+    let mut q = a.to_vec();
+    for k in 0..a.len() {
+        let step = if k % 2 == 0 { PROBE_MM } else { PROBE_DEG };
+        let mut probe = |d: f64| -> Option<Frame<f64>> {
+            q[k] = a[k] + d;
+            let moved = solver.clone().fk_actual(&q, force).ok();
+            q[k] = a[k];
+            moved.map(|t| frame_of(t.position, t.quaternion))
+        };
+        let (up, down) = (probe(step), probe(-step));
+        let span = step * f64::from(u8::from(up.is_some()) + u8::from(down.is_some()));
+        let (up, down) = (up.unwrap_or(at), down.unwrap_or(at));
+        columns.push(if span > 0.0 {
+            let dp = (up.position - down.position) / span;
+            let w = Rotation3::from_matrix_unchecked(up.rotation * down.rotation.transpose())
+                .scaled_axis()
+                / span;
+            [dp.x, dp.y, dp.z, w.x, w.y, w.z]
+        } else {
+            [0.0; 6]
+        });
+    }
+    Ok(tip)
 }
 
 /// The actual joints of run `run` of `rec` under `rows`' joint effects (the recorded

@@ -206,11 +206,41 @@ fn joints_out_of_range_are_an_error_as_a_solve_says() {
 }
 
 #[test]
-fn loaded_models_are_not_linearised() {
-    let (mut m, rec, rows) = setting();
+fn under_gravity_its_probed_central_differences_are_the_solved_ones() {
+    let (mut m, rec, mut rows) = setting();
+    // the loaded solver has no clearance kinks
+    m.effects.clearance = None;
     m.effects.gravity = Some(Gravity {
         direction_w: [0.0, 0.0, -1.0],
         g_m_s2: 9.81,
     });
+    // loaded solves cost more: one row in nine
+    rows.retain(|r| r % 9 == 0);
+    let lin = Linearised::new(&m, &rec, &rows)
+        .unwrap()
+        .expect("probed under a load");
+    let near = flat(&lin.predict(&m, &rec).unwrap().unwrap(), &rows);
+    let solved = flat(&predict_rows(&m, &rec, &rows).unwrap(), &rows);
+    let worst = near
+        .iter()
+        .zip(&solved)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "at the point: {worst} apart");
+    for (name, step) in steps(&m) {
+        let gap = apart(&lin, &rec, &rows, &step, 1.0);
+        let bound = if name.starts_with("registration") || name.starts_with("sensor") {
+            ROUNDING
+        } else {
+            LINEARISATION
+        };
+        assert!(gap <= bound, "{name}: {gap:.2e} apart");
+    }
+}
+
+#[test]
+fn a_learned_term_is_not_linearised() {
+    let (mut m, rec, rows) = setting();
+    m.empirical = Some(ctr_formats::Correction::default());
     assert!(Linearised::new(&m, &rec, &rows).unwrap().is_none());
 }

@@ -7,11 +7,11 @@
 //! offsets, latency, the play friction; on the measurement: sensor offset and
 //! rotation, registration; [`crate::candidates::EffectId::leaves_mechanics`]) do not solve the rows again:
 //! the rows are solved once at the parameters with the core's analytic joint Jacobian
-//! ([`Linearised`], beside the solved columns), and each step's prediction is the
-//! chain rule through it, exact in the measurement (checked against solving again in
-//! `ctr-analysis/tests/linearised.rs`). Measured on the real three-tube recording: the
-//! search's solves went from 7.6 to 2.4 million. Where the model has no analytic joint
-//! Jacobian (gravity, a recorded tip force) they are solved like the others.
+//! ([`Linearised`], beside the solved columns; under a load, where the core has no
+//! analytic one, by probes, and only where that costs fewer solves than the columns),
+//! and each step's prediction is the chain rule through it, exact in the measurement
+//! (checked against solving again in `ctr-analysis/tests/linearised.rs`). Measured on
+//! the real three-tube recording: the search's solves went from 7.6 to 2.4 million.
 
 use crate::fit::Problem;
 use ctr_analysis::linearised::Linearised;
@@ -33,7 +33,7 @@ impl Problem<'_> {
         p0: &[f64],
     ) -> (DMatrix<f64>, Vec<[bool; 2]>) {
         let np = x.len();
-        let cheap: Vec<usize> = (0..np).filter(|&j| self.leaves_mechanics(j)).collect();
+        let cheap = self.linearised_columns(x);
         // first the rows linearised (one job) beside the columns that need solves, then
         // the columns of the effects that leave the mechanics alone, without solving
         // where the rows could be linearised; `threads` is at least 1 (0: all cores)
@@ -121,13 +121,23 @@ impl Problem<'_> {
         self.table(b).is_none() && b.leaves_mechanics()
     }
 
+    /// The columns at `x` taken from the linearised rows: those of the effects that
+    /// leave the mechanics alone, where linearising costs fewer solves of each row
+    /// ([`Linearised::solves_per_row`]: under a load its probes) than the two per
+    /// column it saves; none else.
+    fn linearised_columns(&self, x: &[f64]) -> Vec<usize> {
+        let cheap: Vec<usize> = (0..x.len()).filter(|&j| self.leaves_mechanics(j)).collect();
+        let cost = Linearised::solves_per_row(&self.model(x), self.rec, &self.rows);
+        match cost {
+            Some(c) if !cheap.is_empty() && c < (2 * cheap.len()) as f64 => cheap,
+            _ => Vec::new(),
+        }
+    }
+
     /// The rows at `x` linearised for the columns of the effects that leave the
     /// mechanics alone, when there are such columns and the model has a joint
     /// Jacobian (else they are solved like the others).
     fn moves_without_solving(&self, x: &[f64]) -> Option<Moves> {
-        if !(0..x.len()).any(|j| self.leaves_mechanics(j)) {
-            return None;
-        }
         let linearised = Linearised::new(&self.model(x), self.rec, &self.rows)
             .ok()
             .flatten()?;
