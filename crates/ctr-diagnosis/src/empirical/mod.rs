@@ -214,6 +214,21 @@ pub(crate) fn path(fields: &[Field], e: &[[f64; 3]], w: &[f64], k: usize) -> Vec
     chosen
 }
 
+/// Whether a feature's column varies over the rows: a joint the recording never moves
+/// (a tube held at one feed) is a constant by another name, and proportional to it
+/// is constant.
+fn varies(column: &[f64]) -> bool {
+    let (lo, hi) = column
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    hi - lo > STILL * (1.0 + lo.abs().max(hi.abs()))
+}
+
+/// Relative spread below which a feature's column is constant over the rows.
+const STILL: f64 = 1e-9;
+
 /// Share of a field's own weighted norm squared below which what is left of it after
 /// the chosen fields counts as dependent on them.
 const DEPENDENT: f64 = 1e-10;
@@ -275,7 +290,7 @@ impl Basis {
         self.features
             .iter()
             .zip(&self.columns)
-            .filter(|(f, _)| **f != Feature::Constant)
+            .filter(|(f, c)| **f != Feature::Constant && varies(c))
             .map(|(f, c)| (*f, c.as_slice()))
     }
 }
@@ -318,6 +333,23 @@ mod tests {
             }],
             rows,
         }
+    }
+
+    /// A joint the recording never moves gives no varying feature (proportional to it
+    /// is constant); the joints that move do.
+    #[test]
+    fn a_joint_held_still_gives_no_varying_feature() {
+        let mut rec = recording(100);
+        for r in &mut rec.rows {
+            r.q[2] = 40.0; // tube 2 held at one feed
+        }
+        let tips = vec![[1.0, 2.0, 3.0]; 100];
+        let basis = Basis::raw(&rec, &tips);
+        let varying: Vec<Feature> = basis.varying().map(|(f, _)| f).collect();
+        assert!(!varying.contains(&Feature::Feed(1)), "{varying:?}");
+        assert!(varying.contains(&Feature::Feed(0)), "{varying:?}");
+        // the tips never move either
+        assert!(basis.features.len() > varying.len() + 1);
     }
 
     /// An error made of two basis terms is found with two terms and removed exactly;
