@@ -82,7 +82,8 @@ impl Linearised {
     /// differences of warm solves at [`PROBE_MM`] / [`PROBE_DEG`] (one-sided where a
     /// probe leaves the robot's ranges). `Ok(None)` where the model is more than
     /// mechanics, joints and measurement: a learned discrepancy or an empirical
-    /// correction (on the commanded joints, after the measurement).
+    /// correction (on the commanded joints, after the measurement). The runs on
+    /// `threads` workers (the same result at any count).
     ///
     /// ```
     /// use ctr_analysis::{linearised::Linearised, model::ModelSpec, simulate::predict};
@@ -92,7 +93,7 @@ impl Linearised {
     ///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
     /// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n150,0,0,0,150\n".as_bytes(), "rec.csv", 1)?;
     /// let m = ModelSpec::from_spec(&spec);
-    /// let lin = Linearised::new(&m, &rec, &[0])?.expect("unloaded: the core has a Jacobian");
+    /// let lin = Linearised::new(&m, &rec, &[0], 1)?.expect("unloaded: the core has a Jacobian");
     /// // fed 0.001 mm further: to first order, as a solve says
     /// let mut moved = m.clone();
     /// moved.effects.joint_offset = Some(JointOffset { feed_mm: vec![1e-3], rotation_deg: vec![0.0] });
@@ -104,6 +105,7 @@ impl Linearised {
         model: &ModelSpec,
         rec: &Recording,
         rows: &[usize],
+        threads: usize,
     ) -> Result<Option<Self>, SimError> {
         if model.discrepancy.is_some() || model.empirical.is_some() {
             return Ok(None);
@@ -127,31 +129,17 @@ impl Linearised {
             tip: vec![Frame::identity(); n],
             jacobian: vec![[0.0; 6]; n * width],
         };
-        let mut columns = Vec::with_capacity(width);
-        for &run in &out.runs {
-            let range = rec.runs[run].rows.clone();
-            let actual = run_actual(&row_model, rec, run);
-            let mut solver = row_model.solver();
-            for (k, row) in range.enumerate() {
-                if !out.solved[row] {
-                    continue;
-                }
-                let a = &actual[k];
-                let force = rec.rows[row].force_n;
-                let solve = if loaded {
-                    probed(&mut solver, a, force, &mut columns)
-                } else {
-                    solver.fk_jacobian(a, &mut columns)
-                };
-                let tip = match solve {
-                    Ok(tip) => tip,
-                    Err(SolveError::Unsupported(_)) => return Ok(None),
-                    Err(SolveError::Joint(error)) => return Err(SimError::Joint { row, error }),
-                    Err(error) => return Err(SimError::Load { row, error }),
-                };
-                out.actual[row * width..(row + 1) * width].copy_from_slice(a);
+        let parts = ctr_formats::parallel::map(&out.runs, threads.max(1), |&run| {
+            run_linearised(&row_model, rec, run, &out.solved, loaded)
+        });
+        for part in parts {
+            let Some(part) = part? else {
+                return Ok(None);
+            };
+            for (row, a, columns, tip) in part {
+                out.actual[row * width..(row + 1) * width].copy_from_slice(&a);
                 out.jacobian[row * width..(row + 1) * width].copy_from_slice(&columns);
-                out.tip[row] = frame_of(tip.position, tip.quaternion);
+                out.tip[row] = tip;
             }
         }
         Ok(Some(out))
@@ -282,6 +270,50 @@ fn probed(
         });
     }
     Ok(tip)
+}
+
+/// A linearised row: its index, actual joints, Jacobian columns and unmeasured tip.
+type RowLinearised = (usize, Vec<f64>, Vec<[f64; 6]>, Frame<f64>);
+
+/// The rows `solved` of run `run` solved along it with their joint Jacobians (probed
+/// where `loaded`); `Ok(None)` where the core has no Jacobian for them.
+fn run_linearised(
+    row_model: &RowModel,
+    rec: &Recording,
+    run: usize,
+    solved: &[bool],
+    loaded: bool,
+) -> Result<Option<Vec<RowLinearised>>, SimError> {
+    let range = rec.runs[run].rows.clone();
+    let actual = run_actual(row_model, rec, run);
+    let mut solver = row_model.solver();
+    let mut columns = Vec::new();
+    let mut out = Vec::new();
+    for (k, row) in range.enumerate() {
+        if !solved[row] {
+            continue;
+        }
+        let a = &actual[k];
+        let force = rec.rows[row].force_n;
+        let solve = if loaded {
+            probed(&mut solver, a, force, &mut columns)
+        } else {
+            solver.fk_jacobian(a, &mut columns)
+        };
+        let tip = match solve {
+            Ok(tip) => tip,
+            Err(SolveError::Unsupported(_)) => return Ok(None),
+            Err(SolveError::Joint(error)) => return Err(SimError::Joint { row, error }),
+            Err(error) => return Err(SimError::Load { row, error }),
+        };
+        out.push((
+            row,
+            a.clone(),
+            columns.clone(),
+            frame_of(tip.position, tip.quaternion),
+        ));
+    }
+    Ok(Some(out))
 }
 
 /// The actual joints of run `run` of `rec` under `rows`' joint effects (the recorded

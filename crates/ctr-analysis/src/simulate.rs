@@ -7,7 +7,7 @@
 //! model is refused as the core refuses it), the tip as measured.
 
 use crate::learned::delayed_commands;
-use crate::model::{ModelError, ModelSpec};
+use crate::model::{ModelError, ModelSpec, RowModel};
 use crate::timeline::actual_joints;
 use ctr_core::{JointError, SolveError, Status};
 use ctr_formats::Recording;
@@ -79,7 +79,7 @@ pub struct Prediction {
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Prediction, SimError> {
-    simulate(model, rec, runs, |_| true, false)
+    simulate(model, rec, runs, |_| true, false, 1)
 }
 
 /// [`predict`] with every simulated row's stability margin ([`Prediction::margin`]),
@@ -101,7 +101,7 @@ pub fn predict_with_margins(
     rec: &Recording,
     runs: &[usize],
 ) -> Result<Prediction, SimError> {
-    simulate(model, rec, runs, |_| true, true)
+    simulate(model, rec, runs, |_| true, true, 1)
 }
 
 /// Simulates only the rows `rows` (indices into `rec.rows`, ascending) of a
@@ -128,12 +128,38 @@ pub fn predict_rows(
     rec: &Recording,
     rows: &[usize],
 ) -> Result<Prediction, SimError> {
+    predict_rows_on(model, rec, rows, 1)
+}
+
+/// [`predict_rows`] with the runs on `threads` workers (0: every core): the same
+/// prediction at any thread count.
+///
+/// ```
+/// use ctr_analysis::{model::ModelSpec, simulate::{predict_rows, predict_rows_on}};
+/// use ctr_formats::{Recording, RobotSpec};
+/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+///     length_mm = 260.0\ncurved_length_mm = 90.0\ncurvature_radius_mm = 100.0\n\
+///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+/// let csv = "run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\na,150,0,0,0,150\nb,160,10,0,0,160\nc,170,20,0,0,170\n";
+/// let rec = Recording::read(csv.as_bytes(), "rec.csv", 1)?;
+/// let m = ModelSpec::from_spec(&spec);
+/// let (two, one) = (predict_rows_on(&m, &rec, &[0, 2], 2)?, predict_rows(&m, &rec, &[0, 2])?);
+/// assert_eq!((two.p[0], two.p[2]), (one.p[0], one.p[2]));
+/// assert!(two.p[1][0].is_nan()); // not asked for
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn predict_rows_on(
+    model: &ModelSpec,
+    rec: &Recording,
+    rows: &[usize],
+    threads: usize,
+) -> Result<Prediction, SimError> {
     let runs = runs_holding(rec, rows);
     let mut keep = vec![false; rec.rows.len()];
     for &r in rows {
         keep[r] = true;
     }
-    simulate(model, rec, &runs, |row| keep[row], false)
+    simulate(model, rec, &runs, |row| keep[row], false, threads)
 }
 
 /// The runs of `rec` that hold one of `rows` (ascending row indices).
@@ -148,65 +174,101 @@ pub(crate) fn runs_holding(rec: &Recording, rows: &[usize]) -> Vec<usize> {
         .collect()
 }
 
-/// The runs `runs` simulated, the rows `keep` says solved, with margins if `margins`.
+/// The runs `runs` simulated, the rows `keep` says solved, with margins if `margins`,
+/// the runs on `threads` workers (each run a time series of its own; the result does
+/// not depend on the thread count, and an error is the first run's in order).
 fn simulate(
     model: &ModelSpec,
     rec: &Recording,
     runs: &[usize],
-    keep: impl Fn(usize) -> bool,
+    keep: impl Fn(usize) -> bool + Sync,
     margins: bool,
+    threads: usize,
 ) -> Result<Prediction, SimError> {
     let rows = model.rows().map_err(SimError::Model)?;
+    let parts = ctr_formats::parallel::map(runs, threads.max(1), |&run| {
+        run_tips(model, &rows, rec, run, &keep, margins)
+    });
     let mut out = Prediction {
         p: vec![[f64::NAN; 3]; rec.rows.len()],
         q: vec![[f64::NAN; 4]; rec.rows.len()],
         failed: 0,
         margin: vec![f64::NAN; rec.rows.len()],
     };
-    for &run in runs {
-        let range = rec.runs[run].rows.clone();
-        // actual joints per row of the run; without shifts the recorded ones as they are
-        let shifted = rows.shifts_joints().then(|| {
-            actual_joints(
-                &rec.run_times(run),
-                &rec.run_joints(run),
-                rows.time_effects(),
-            )
+    for part in parts {
+        for tip in part? {
+            match tip.margin {
+                Some(m) => out.margin[tip.row] = m,
+                None => out.failed += 1,
+            }
+            out.p[tip.row] = tip.p;
+            out.q[tip.row] = tip.q;
+        }
+    }
+    Ok(out)
+}
+
+/// A solved row of a run.
+struct RowTip {
+    row: usize,
+    p: [f64; 3],
+    q: [f64; 4],
+    /// The stability margin where the solve converged (`None`: it did not).
+    margin: Option<f64>,
+}
+
+/// The rows `keep` says solved of run `run`, in order, warm-started along it, with the
+/// learned discrepancy added.
+fn run_tips(
+    model: &ModelSpec,
+    rows: &RowModel,
+    rec: &Recording,
+    run: usize,
+    keep: &impl Fn(usize) -> bool,
+    margins: bool,
+) -> Result<Vec<RowTip>, SimError> {
+    let range = rec.runs[run].rows.clone();
+    // actual joints per row of the run; without shifts the recorded ones as they are
+    let shifted = rows.shifts_joints().then(|| {
+        actual_joints(
+            &rec.run_times(run),
+            &rec.run_joints(run),
+            rows.time_effects(),
+        )
+    });
+    let mut solver = rows.solver();
+    if margins {
+        solver = solver.with_margins();
+    }
+    let mut out = Vec::with_capacity(range.len());
+    for (k, row) in range.clone().enumerate() {
+        if !keep(row) {
+            continue;
+        }
+        let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
+        let r = &rec.rows[row];
+        let tip = solver
+            .fk_timed(&r.q, a, r.t_s, r.force_n)
+            .map_err(|error| match error {
+                SolveError::Joint(error) => SimError::Joint { row, error },
+                error => SimError::Load { row, error },
+            })?;
+        out.push(RowTip {
+            row,
+            p: tip.position,
+            q: tip.quaternion,
+            margin: (tip.status == Status::Converged).then_some(tip.stability_margin),
         });
-        let mut solver = rows.solver();
-        if margins {
-            solver = solver.with_margins();
-        }
-        for (k, row) in range.clone().enumerate() {
-            if !keep(row) {
-                continue;
-            }
-            let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
-            let r = &rec.rows[row];
-            let tip = solver
-                .fk_timed(&r.q, a, r.t_s, r.force_n)
-                .map_err(|error| match error {
-                    SolveError::Joint(error) => SimError::Joint { row, error },
-                    error => SimError::Load { row, error },
-                })?;
-            if tip.status == Status::Converged {
-                out.margin[row] = tip.stability_margin;
-            } else {
-                out.failed += 1;
-            }
-            out.p[row] = tip.position;
-            out.q[row] = tip.quaternion;
-        }
-        if let Some(gp) = &model.discrepancy {
-            // the learned discrepancy along the run, from the delayed commands
-            let commands = delayed_commands(model, rec, run);
-            let joints: Vec<&[f64]> = commands.iter().map(|q| &q[..]).collect();
-            for (row, (d, _)) in range.zip(gp.along_run(&joints)) {
-                if keep(row) {
-                    for a in 0..3 {
-                        out.p[row][a] += d[a];
-                    }
-                }
+    }
+    if let Some(gp) = &model.discrepancy {
+        // the learned discrepancy along the run, from the delayed commands
+        let commands = delayed_commands(model, rec, run);
+        let joints: Vec<&[f64]> = commands.iter().map(|q| &q[..]).collect();
+        let along = gp.along_run(&joints);
+        for tip in &mut out {
+            let (d, _) = &along[tip.row - range.start];
+            for a in 0..3 {
+                tip.p[a] += d[a];
             }
         }
     }

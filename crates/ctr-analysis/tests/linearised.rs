@@ -121,7 +121,9 @@ fn flat(p: &Prediction, rows: &[usize]) -> Vec<f64> {
 #[test]
 fn at_the_point_linearised_it_is_the_solved_prediction() {
     let (m, rec, rows) = setting();
-    let lin = Linearised::new(&m, &rec, &rows).unwrap().expect("unloaded");
+    let lin = Linearised::new(&m, &rec, &rows, 2)
+        .unwrap()
+        .expect("unloaded");
     let near = flat(&lin.predict(&m, &rec).unwrap().unwrap(), &rows);
     let solved = flat(&predict_rows(&m, &rec, &rows).unwrap(), &rows);
     let worst = near
@@ -167,7 +169,9 @@ const LINEARISATION: f64 = 1e-2;
 #[test]
 fn its_central_differences_are_the_solved_ones_for_every_kind_of_effect() {
     let (m, rec, rows) = setting();
-    let lin = Linearised::new(&m, &rec, &rows).unwrap().expect("unloaded");
+    let lin = Linearised::new(&m, &rec, &rows, 2)
+        .unwrap()
+        .expect("unloaded");
     for (name, step) in steps(&m) {
         // the same to first order: at most a part in a hundred at the step a fit takes
         // (the second-order term, and rows that sit on a kink of the model: a feed
@@ -186,7 +190,9 @@ fn its_central_differences_are_the_solved_ones_for_every_kind_of_effect() {
 #[test]
 fn a_change_of_the_mechanics_is_refused() {
     let (m, rec, rows) = setting();
-    let lin = Linearised::new(&m, &rec, &rows).unwrap().expect("unloaded");
+    let lin = Linearised::new(&m, &rec, &rows, 2)
+        .unwrap()
+        .expect("unloaded");
     let mut stiffer = m.clone();
     stiffer.effects.precurvature = Some(Precurvature {
         radius_factor: vec![1.0, 1.01, 1.0],
@@ -197,7 +203,9 @@ fn a_change_of_the_mechanics_is_refused() {
 #[test]
 fn joints_out_of_range_are_an_error_as_a_solve_says() {
     let (m, rec, rows) = setting();
-    let lin = Linearised::new(&m, &rec, &rows).unwrap().expect("unloaded");
+    let lin = Linearised::new(&m, &rec, &rows, 2)
+        .unwrap()
+        .expect("unloaded");
     let mut behind = m.clone();
     // tube 1 fed 1 m: past its own length on every row
     behind.effects.joint_offset.as_mut().unwrap().feed_mm[0] = 1000.0;
@@ -216,7 +224,7 @@ fn under_gravity_its_probed_central_differences_are_the_solved_ones() {
     });
     // loaded solves cost more: one row in nine
     rows.retain(|r| r % 9 == 0);
-    let lin = Linearised::new(&m, &rec, &rows)
+    let lin = Linearised::new(&m, &rec, &rows, 2)
         .unwrap()
         .expect("probed under a load");
     let near = flat(&lin.predict(&m, &rec).unwrap().unwrap(), &rows);
@@ -242,5 +250,5 @@ fn under_gravity_its_probed_central_differences_are_the_solved_ones() {
 fn a_learned_term_is_not_linearised() {
     let (mut m, rec, rows) = setting();
     m.empirical = Some(ctr_formats::Correction::default());
-    assert!(Linearised::new(&m, &rec, &rows).unwrap().is_none());
+    assert!(Linearised::new(&m, &rec, &rows, 2).unwrap().is_none());
 }

@@ -130,3 +130,19 @@ fn a_recorded_force_on_the_rigid_model_is_refused_not_solved_with_torsion() {
         })
     );
 }
+
+/// The runs of a prediction side by side give the same numbers, bit for bit, as one
+/// after the other (each run is a time series of its own).
+#[test]
+fn runs_predicted_side_by_side_are_the_same_as_in_turn() {
+    let (model, rec, _) = load("dev-friction");
+    assert!(rec.runs.len() > 2, "several runs");
+    let rows: Vec<usize> = (0..rec.rows.len()).step_by(2).collect();
+    let one = ctr_analysis::simulate::predict_rows_on(&model, &rec, &rows, 1).unwrap();
+    let three = ctr_analysis::simulate::predict_rows_on(&model, &rec, &rows, 3).unwrap();
+    for &r in &rows {
+        assert_eq!(one.p[r], three.p[r], "row {r}");
+        assert_eq!(one.q[r], three.q[r], "row {r}");
+    }
+    assert_eq!(one.failed, three.failed);
+}

@@ -22,7 +22,7 @@
 use crate::candidates::EffectId;
 use crate::residual::angular_errors;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::{predict_rows, Prediction};
+use ctr_analysis::simulate::{predict_rows_on, Prediction};
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
 
@@ -222,7 +222,13 @@ impl Problem<'_> {
     /// the measurement), then the roughness rows; `None` where the model cannot be
     /// simulated on them (joints pushed out of range, ...).
     pub fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
-        let pred = predict_rows(&self.model(x), self.rec, &self.rows).ok()?;
+        self.predictions_on(x, self.threads)
+    }
+
+    /// [`predictions`](Self::predictions) with the runs on `threads` workers (1 inside
+    /// a job of the pool).
+    pub(crate) fn predictions_on(&self, x: &[f64], threads: usize) -> Option<Vec<f64>> {
+        let pred = predict_rows_on(&self.model(x), self.rec, &self.rows, threads).ok()?;
         self.assembled(&pred, x)
     }
 

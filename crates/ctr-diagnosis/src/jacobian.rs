@@ -43,9 +43,11 @@ impl Problem<'_> {
             jobs.insert(0, None);
         }
         let threads = self.threads.max(1);
+        // the linearisation alone has the threads to itself (its runs side by side)
+        let alone = if jobs.len() == 1 { threads } else { 1 };
         let done = ctr_formats::parallel::map(&jobs, threads, |job| match job {
             Some(j) => (Some(self.column(x, p0, *j, None)), None),
-            None => (None, self.moves_without_solving(x)),
+            None => (None, self.moves_without_solving(x, alone)),
         });
         let mut columns: Vec<Option<(Vec<f64>, [bool; 2])>> = vec![None; np];
         let mut moves = None;
@@ -91,7 +93,7 @@ impl Problem<'_> {
             match moves {
                 _ if d == 0.0 => None,
                 Some(moves) => moves.predictions(self, &xs),
-                None => self.predictions(&xs),
+                None => self.predictions_on(&xs, 1),
             }
         };
         let (pp, pm) = (side(up), side(-down));
@@ -134,11 +136,11 @@ impl Problem<'_> {
         }
     }
 
-    /// The rows at `x` linearised for the columns of the effects that leave the
-    /// mechanics alone, when there are such columns and the model has a joint
-    /// Jacobian (else they are solved like the others).
-    fn moves_without_solving(&self, x: &[f64]) -> Option<Moves> {
-        let linearised = Linearised::new(&self.model(x), self.rec, &self.rows)
+    /// The rows at `x` linearised (their runs on `threads`) for the columns of the
+    /// effects that leave the mechanics alone, when there are such columns and the
+    /// model has a joint Jacobian (else they are solved like the others).
+    fn moves_without_solving(&self, x: &[f64], threads: usize) -> Option<Moves> {
+        let linearised = Linearised::new(&self.model(x), self.rec, &self.rows, threads)
             .ok()
             .flatten()?;
         let mut moves = Moves {
