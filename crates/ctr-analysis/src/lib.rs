@@ -5,8 +5,9 @@
 //! core's `Robot<f64, N>` for a tube count known at run time) and checked joints or
 //! targets -> core solves of the file's whole model ([`model`]: ONE row model, the
 //! robot, its `[model] kind` and `[model.effects]`; [`batch`] on the one thread pool,
-//! thread-count independent; [`simulate`] along recordings; [`ik`] for targets) -> tip
-//! or joint files. [`job`] strings these together for `ctr-cli fk` and `ctr-cli ik`.
+//! thread-count independent; [`simulate`] along recordings, and [`linearised`] the
+//! same rows moved without solving again, for a fit's Jacobian; [`ik`] for targets) ->
+//! tip or joint files. [`job`] strings these together for `ctr-cli fk` and `ctr-cli ik`.
 //! The forward numerics are the core's; this crate prepares rows for it, dispatches,
 //! and solves the inverse problem on top of the core's forward kinematics.
 //!
