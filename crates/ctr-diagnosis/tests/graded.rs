@@ -220,6 +220,31 @@ fn the_discrepancy_predicts_the_public_unexplained_recordings_with_an_honest_ban
         );
         assert!(e.heldout_rms_mm < r.final_.heldout_rms_mm, "{id}");
         assert!(band.heldout_coverage_95 >= 0.85, "{id}: {band:?}");
+        identified_once(r);
+    }
+}
+
+/// Each combination the data identify is listed once, in the findings' `ci95` and in the
+/// identifiability statements, however many directions not identified share its
+/// parameters (the drift recording has two that share three).
+fn identified_once(r: &ctr_diagnosis::Report) {
+    let names: Vec<String> = r
+        .findings
+        .iter()
+        .filter_map(|f| f.ci95.get("identified")?.as_array().cloned())
+        .flatten()
+        .filter_map(|c| c["combination"].as_str().map(str::to_owned))
+        .collect();
+    let mut unique = names.clone();
+    unique.sort_unstable();
+    unique.dedup();
+    assert_eq!(unique.len(), names.len(), "{names:?}");
+    let statements = r.identifiability.join(" ");
+    for n in &names {
+        assert!(
+            statements.matches(n.as_str()).count() <= 1,
+            "{n} in {statements}"
+        );
     }
 }
 

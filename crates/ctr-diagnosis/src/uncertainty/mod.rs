@@ -92,6 +92,9 @@ pub(crate) struct Combination {
     /// both its parameters are of one effect; `None` across effects (it then says
     /// nothing of either effect alone).
     pub not_there: Option<f64>,
+    /// The direction not identified it is orthogonal to (index into the null
+    /// directions): the statement of that direction lists it.
+    direction: usize,
 }
 
 impl Combination {
@@ -515,7 +518,7 @@ impl Assessment {
     /// the finding of its first parameter.
     pub fn combinations(&self) -> Vec<Combination> {
         let mut out = Vec::new();
-        for u in &self.null {
+        for (direction, u) in self.null.iter().enumerate() {
             let part = parts(u);
             let Some(&r) = part.iter().find(|&&j| u[j].abs() >= 0.5 * u.amax()) else {
                 continue;
@@ -561,29 +564,35 @@ impl Assessment {
                     };
                     (name, value, [value - half, value + half], at_nominal)
                 };
+                // two directions that share parameters give the same pair twice: once
+                if out.iter().any(|c: &Combination| c.name == name) {
+                    continue;
+                }
                 out.push(Combination {
                     effect: self.effects[j],
                     name,
                     value,
                     ci95,
                     not_there: one_effect.then_some(at_nominal),
+                    direction,
                 });
             }
         }
         out
     }
 
-    /// What the data do not identify, in words (one sentence per direction).
+    /// What the data do not identify, in words (one sentence per direction, with the
+    /// combinations across it not listed before).
     pub fn statements(&self, combos: &[Combination]) -> Vec<String> {
         let mut out = Vec::new();
-        for u in &self.null {
+        for (direction, u) in self.null.iter().enumerate() {
             let names: Vec<String> = parts(u)
                 .into_iter()
                 .map(|j| self.labels[j].name.clone())
                 .collect();
             let ids: Vec<String> = combos
                 .iter()
-                .filter(|c| names.iter().any(|n| c.name.contains(n.as_str())))
+                .filter(|c| c.direction == direction)
                 .map(Combination::words)
                 .collect();
             let mut s = format!(
