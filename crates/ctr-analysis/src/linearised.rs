@@ -28,8 +28,7 @@
 //! from here instead of two solves of every row per parameter.
 
 use crate::model::{ModelSpec, RowModel, RowSolver};
-use crate::simulate::{Prediction, SimError};
-use crate::timeline::actual_joints;
+use crate::simulate::{row_error, shifted_joints, Prediction, SimError};
 use ctr_core::{Frame, SolveError};
 use ctr_formats::{canonical_quaternion, FkResult, Recording};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector3};
@@ -107,7 +106,7 @@ impl Linearised {
         rows: &[usize],
         threads: usize,
     ) -> Result<Option<Self>, SimError> {
-        if model.discrepancy.is_some() || model.empirical.is_some() {
+        if learned(model) {
             return Ok(None);
         }
         let loaded = loaded(model, rec, rows);
@@ -150,7 +149,7 @@ impl Linearised {
     /// where `model` is not linearised. A fit's Jacobian linearises only where this is
     /// below the two solves per parameter it saves.
     pub fn solves_per_row(model: &ModelSpec, rec: &Recording, rows: &[usize]) -> Option<f64> {
-        if model.discrepancy.is_some() || model.empirical.is_some() {
+        if learned(model) {
             None
         } else if loaded(model, rec, rows) {
             Some((1 + 2 * 2 * model.robot.n_tubes()) as f64)
@@ -185,12 +184,12 @@ impl Linearised {
         let w = self.width;
         for &run in &self.runs {
             let range = rec.runs[run].rows.clone();
-            let actual = run_actual(&row_model, rec, run);
+            let shifted = shifted_joints(&row_model, rec, run);
             for (k, row) in range.enumerate() {
                 if !self.solved[row] {
                     continue;
                 }
-                let a = &actual[k];
+                let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
                 row_model
                     .robot()
                     .validate_joints(a)
@@ -225,6 +224,12 @@ const ANALYTIC_SOLVES: f64 = 3.0;
 pub const PROBE_MM: f64 = 1e-3;
 /// Probe step of a rotation under a load, degrees (as [`PROBE_MM`]).
 pub const PROBE_DEG: f64 = 1e-3;
+
+/// Whether `model` has a learned discrepancy or an empirical correction: terms on the
+/// commanded joints after the measurement, which are not linearised.
+fn learned(model: &ModelSpec) -> bool {
+    model.discrepancy.is_some() || model.empirical.is_some()
+}
 
 /// Whether the rows `rows` of `model` are solved under a load (gravity, a tip force).
 fn loaded(model: &ModelSpec, rec: &Recording, rows: &[usize]) -> bool {
@@ -285,7 +290,7 @@ fn run_linearised(
     loaded: bool,
 ) -> Result<Option<Vec<RowLinearised>>, SimError> {
     let range = rec.runs[run].rows.clone();
-    let actual = run_actual(row_model, rec, run);
+    let shifted = shifted_joints(row_model, rec, run);
     let mut solver = row_model.solver();
     let mut columns = Vec::new();
     let mut out = Vec::new();
@@ -293,7 +298,7 @@ fn run_linearised(
         if !solved[row] {
             continue;
         }
-        let a = &actual[k];
+        let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
         let force = rec.rows[row].force_n;
         let solve = if loaded {
             probed(&mut solver, a, force, &mut columns)
@@ -303,8 +308,7 @@ fn run_linearised(
         let tip = match solve {
             Ok(tip) => tip,
             Err(SolveError::Unsupported(_)) => return Ok(None),
-            Err(SolveError::Joint(error)) => return Err(SimError::Joint { row, error }),
-            Err(error) => return Err(SimError::Load { row, error }),
+            Err(error) => return Err(row_error(row, error)),
         };
         out.push((
             row,
@@ -314,20 +318,6 @@ fn run_linearised(
         ));
     }
     Ok(Some(out))
-}
-
-/// The actual joints of run `run` of `rec` under `rows`' joint effects (the recorded
-/// commands where it has none), row after row.
-fn run_actual(rows: &RowModel, rec: &Recording, run: usize) -> Vec<Vec<f64>> {
-    if rows.shifts_joints() {
-        actual_joints(
-            &rec.run_times(run),
-            &rec.run_joints(run),
-            rows.time_effects(),
-        )
-    } else {
-        rec.run_joints(run)
-    }
 }
 
 /// The frame of a position and a unit quaternion `w, x, y, z`.

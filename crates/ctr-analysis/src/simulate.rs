@@ -219,6 +219,30 @@ struct RowTip {
 
 /// The rows `keep` says solved of run `run`, in order, warm-started along it, with the
 /// learned discrepancy added.
+/// The actual joints of run `run` of `rec` under `rows`' joint effects, row after row;
+/// `None` where it has none (the recorded commands are the actual joints).
+pub(crate) fn shifted_joints(
+    rows: &RowModel,
+    rec: &Recording,
+    run: usize,
+) -> Option<Vec<Vec<f64>>> {
+    rows.shifts_joints().then(|| {
+        actual_joints(
+            &rec.run_times(run),
+            &rec.run_joints(run),
+            rows.time_effects(),
+        )
+    })
+}
+
+/// Why row `row` could not be simulated: its actual joints, or a loaded solve refused.
+pub(crate) fn row_error(row: usize, error: SolveError) -> SimError {
+    match error {
+        SolveError::Joint(error) => SimError::Joint { row, error },
+        error => SimError::Load { row, error },
+    }
+}
+
 fn run_tips(
     model: &ModelSpec,
     rows: &RowModel,
@@ -228,14 +252,7 @@ fn run_tips(
     margins: bool,
 ) -> Result<Vec<RowTip>, SimError> {
     let range = rec.runs[run].rows.clone();
-    // actual joints per row of the run; without shifts the recorded ones as they are
-    let shifted = rows.shifts_joints().then(|| {
-        actual_joints(
-            &rec.run_times(run),
-            &rec.run_joints(run),
-            rows.time_effects(),
-        )
-    });
+    let shifted = shifted_joints(rows, rec, run);
     let mut solver = rows.solver();
     if margins {
         solver = solver.with_margins();
@@ -249,10 +266,7 @@ fn run_tips(
         let r = &rec.rows[row];
         let tip = solver
             .fk_timed(&r.q, a, r.t_s, r.force_n)
-            .map_err(|error| match error {
-                SolveError::Joint(error) => SimError::Joint { row, error },
-                error => SimError::Load { row, error },
-            })?;
+            .map_err(|error| row_error(row, error))?;
         out.push(RowTip {
             row,
             p: tip.position,

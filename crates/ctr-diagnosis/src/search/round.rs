@@ -103,9 +103,8 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
     // each with every thread for its Jacobian's columns: the fits differ in cost (one
     // under gravity solves loaded rows), and a long one left alone keeps the cores
     // busy instead of one (measured: 9 % faster than splitting the threads)
-    let fitted = ctr_formats::parallel::map(&to_fit, start.threads, |r| {
-        full_fit(start, found, round, r, start.threads)
-    });
+    let fitted =
+        ctr_formats::parallel::map(&to_fit, start.threads, |r| full_fit(start, found, round, r));
     let mut verdicts = Vec::new();
     let mut passing = Vec::new();
     for (trial, pass) in fitted {
@@ -174,20 +173,13 @@ fn screen_note(screen: &Screen, r: &Screened, full_fits: usize, n: usize) -> Opt
 
 /// Candidate `r` fitted in full from where its screen ended, with the effects found so
 /// far free (a first effect that soaked up part of another must be able to give it
-/// back), on `threads`, and judged: its trial, and the candidate when both tests
+/// back), on every thread, and judged: its trial, and the candidate when both tests
 /// accept it.
-fn full_fit(
-    start: &Start,
-    found: &Found,
-    round: usize,
-    r: &Screened,
-    threads: usize,
-) -> (Trial, Option<Passing>) {
+fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial, Option<Passing>) {
     let c = r.effect;
     let k = c.n_params(start.user.robot.n_tubes());
     let blocks: Vec<EffectId> = found.effects().into_iter().chain([c]).collect();
-    let mut p = start.problem(found.model.clone(), blocks);
-    p.threads = threads;
+    let p = start.problem(found.model.clone(), blocks);
     let x: Vec<f64> = found
         .parameters_in(&found.model)
         .into_iter()
