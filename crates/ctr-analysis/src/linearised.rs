@@ -29,6 +29,7 @@
 
 use crate::model::{ModelSpec, RowModel, RowSolver};
 use crate::simulate::{row_error, shifted_joints, Prediction, SimError};
+use crate::timeline::TimeEffects;
 use ctr_core::{Frame, SolveError};
 use ctr_formats::{canonical_quaternion, FkResult, Recording};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector3};
@@ -57,6 +58,9 @@ fn without_measurement(model: &ModelSpec) -> ModelSpec {
 pub struct Linearised {
     /// What every model [`predict`](Self::predict) is given must share.
     mechanics: ModelSpec,
+    /// The effects on the joints solved at: a model with the same ones moves only its
+    /// measurement.
+    time: TimeEffects,
     /// Joints per row (`2 n`).
     width: usize,
     /// The runs simulated (indices into the recording's runs).
@@ -121,6 +125,7 @@ impl Linearised {
         let runs = crate::simulate::runs_holding(rec, rows);
         let mut out = Linearised {
             mechanics: mechanics(model),
+            time: row_model.time_effects().clone(),
             width,
             runs,
             solved,
@@ -182,14 +187,27 @@ impl Linearised {
             margin: vec![f64::NAN; n],
         };
         let w = self.width;
+        // the same joint effects: the rows' actual joints are those solved at
+        let same_joints = *row_model.time_effects() == self.time;
         for &run in &self.runs {
             let range = rec.runs[run].rows.clone();
-            let shifted = shifted_joints(&row_model, rec, run);
+            let shifted = if same_joints {
+                None
+            } else {
+                shifted_joints(&row_model, rec, run)
+            };
             for (k, row) in range.enumerate() {
                 if !self.solved[row] {
                     continue;
                 }
-                let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
+                let tip = &self.tip[row];
+                if same_joints {
+                    let measured = measurement.measured(tip);
+                    out.p[row] = measured.position.into();
+                    out.q[row] = canonical_quaternion(&measured.orientation());
+                    continue;
+                }
+                let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
                 row_model
                     .robot()
                     .validate_joints(a)
@@ -201,7 +219,6 @@ impl Linearised {
                     dp += Vector3::new(col[0], col[1], col[2]) * da;
                     omega += Vector3::new(col[3], col[4], col[5]) * da;
                 }
-                let tip = &self.tip[row];
                 let moved = Frame {
                     rotation: Rotation3::new(omega).into_inner() * tip.rotation,
                     position: tip.position + dp,
@@ -298,7 +315,7 @@ fn run_linearised(
         if !solved[row] {
             continue;
         }
-        let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
+        let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
         let force = rec.rows[row].force_n;
         let solve = if loaded {
             probed(&mut solver, a, force, &mut columns)
@@ -312,7 +329,7 @@ fn run_linearised(
         };
         out.push((
             row,
-            a.clone(),
+            a.to_vec(),
             columns.clone(),
             frame_of(tip.position, tip.quaternion),
         ));

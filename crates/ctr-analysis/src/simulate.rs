@@ -8,7 +8,7 @@
 
 use crate::learned::delayed_commands;
 use crate::model::{ModelError, ModelSpec, RowModel};
-use crate::timeline::actual_joints;
+use crate::timeline::actual_joints_flat;
 use ctr_core::{JointError, SolveError, Status};
 use ctr_formats::Recording;
 use std::fmt;
@@ -221,18 +221,33 @@ struct RowTip {
 /// learned discrepancy added.
 /// The actual joints of run `run` of `rec` under `rows`' joint effects, row after row;
 /// `None` where it has none (the recorded commands are the actual joints).
-pub(crate) fn shifted_joints(
-    rows: &RowModel,
-    rec: &Recording,
-    run: usize,
-) -> Option<Vec<Vec<f64>>> {
+pub(crate) fn shifted_joints(rows: &RowModel, rec: &Recording, run: usize) -> Option<RunJoints> {
     rows.shifts_joints().then(|| {
-        actual_joints(
-            &rec.run_times(run),
-            &rec.run_joints(run),
-            rows.time_effects(),
-        )
+        let range = rec.runs[run].rows.clone();
+        let width = 2 * rows.robot().n_tubes();
+        let t: Vec<f64> = rec.rows[range.clone()].iter().map(|r| r.t_s).collect();
+        let q: Vec<f64> = rec.rows[range]
+            .iter()
+            .flat_map(|r| r.q.iter().copied())
+            .collect();
+        RunJoints {
+            width,
+            values: actual_joints_flat(&t, &q, width, rows.time_effects()),
+        }
     })
+}
+
+/// A run's actual joints ([`shifted_joints`]), row after row.
+pub(crate) struct RunJoints {
+    width: usize,
+    values: Vec<f64>,
+}
+
+impl RunJoints {
+    /// The actual joints of the run's row `k` (file units).
+    pub(crate) fn row(&self, k: usize) -> &[f64] {
+        &self.values[k * self.width..(k + 1) * self.width]
+    }
 }
 
 /// Why row `row` could not be simulated: its actual joints, or a loaded solve refused.
@@ -262,7 +277,7 @@ fn run_tips(
         if !keep(row) {
             continue;
         }
-        let a = shifted.as_ref().map_or(&rec.rows[row].q, |v| &v[k]);
+        let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
         let r = &rec.rows[row];
         let tip = solver
             .fk_timed(&r.q, a, r.t_s, r.force_n)

@@ -85,14 +85,17 @@ impl TimeEffects {
     }
 }
 
-/// The commanded path of a run at time `t` (linear between samples, held at the ends).
-fn path_at(t_s: &[f64], q: &[Vec<f64>], t: f64, out: &mut [f64]) {
+/// The commanded path of a run at time `t` (linear between samples, held at the ends);
+/// `q` holds the run's rows one after another, `out.len()` values each.
+fn path_at(t_s: &[f64], q: &[f64], t: f64, out: &mut [f64]) {
+    let width = out.len();
+    let row = |k: usize| &q[k * width..(k + 1) * width];
     let last = t_s.len() - 1;
     let k = if t <= t_s[0] {
-        out.copy_from_slice(&q[0]);
+        out.copy_from_slice(row(0));
         return;
     } else if t >= t_s[last] {
-        out.copy_from_slice(&q[last]);
+        out.copy_from_slice(row(last));
         return;
     } else {
         // first sample strictly after t
@@ -100,8 +103,9 @@ fn path_at(t_s: &[f64], q: &[Vec<f64>], t: f64, out: &mut [f64]) {
     };
     let (t0, t1) = (t_s[k - 1], t_s[k]);
     let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 1.0 };
+    let (a, b) = (row(k - 1), row(k));
     for (j, o) in out.iter_mut().enumerate() {
-        *o = q[k - 1][j] + (q[k][j] - q[k - 1][j]) * f;
+        *o = a[j] + (b[j] - a[j]) * f;
     }
 }
 
@@ -118,19 +122,36 @@ fn path_at(t_s: &[f64], q: &[Vec<f64>], t: f64, out: &mut [f64]) {
 /// assert_eq!(a[1][3], 5.0); // half a sample behind
 /// ```
 pub fn actual_joints(t_s: &[f64], q: &[Vec<f64>], effects: &TimeEffects) -> Vec<Vec<f64>> {
-    if t_s.is_empty() || q.is_empty() {
+    let Some(width) = q.first().map(Vec::len) else {
+        return Vec::new();
+    };
+    let flat: Vec<f64> = q.iter().flatten().copied().collect();
+    actual_joints_flat(t_s, &flat, width, effects)
+        .chunks(width.max(1))
+        .map(<[f64]>::to_vec)
+        .collect()
+}
+
+/// [`actual_joints`] on flat rows: `q` holds the run's commanded rows one after another,
+/// `width` values each (`2 n`), and so does the result (one allocation per run instead
+/// of one per row: a fit computes this for every prediction).
+///
+/// ```
+/// use ctr_analysis::timeline::{actual_joints_flat, TimeEffects};
+/// let q = [10.0, 0.0, 50.0, 0.0, 10.0, 0.0, 50.0, 10.0];
+/// let mut e = TimeEffects::none(2);
+/// e.joint_offset[3] = 1.0;
+/// assert_eq!(actual_joints_flat(&[0.0, 1.0], &q, 4, &e)[7], 11.0);
+/// ```
+pub fn actual_joints_flat(t_s: &[f64], q: &[f64], width: usize, effects: &TimeEffects) -> Vec<f64> {
+    if t_s.is_empty() || width == 0 || q.len() < t_s.len() * width {
         return Vec::new();
     }
-    let width = q[0].len();
     let n = width / 2;
-    let cmd: Vec<Vec<f64>> = q
+    let cmd: Vec<f64> = q[..t_s.len() * width]
         .iter()
-        .map(|row| {
-            row.iter()
-                .enumerate()
-                .map(|(j, v)| v + effects.joint_offset.get(j).copied().unwrap_or(0.0))
-                .collect()
-        })
+        .enumerate()
+        .map(|(i, v)| v + effects.joint_offset.get(i % width).copied().unwrap_or(0.0))
         .collect();
     let tau = effects.latency_s;
     let friction = effects.rotation_play_deg.iter().any(|&w| w > 0.0)
@@ -146,13 +167,13 @@ pub fn actual_joints(t_s: &[f64], q: &[Vec<f64>], effects: &TimeEffects) -> Vec<
     };
     if friction {
         // memory centred on the first command
-        split(&cmd[0], &mut s, &mut theta);
+        split(&cmd[..width], &mut s, &mut theta);
         feed.copy_from_slice(&s);
         for i in 0..rotation.len() {
             rotation[i] = theta[i + 1] - theta[i];
         }
     }
-    let mut step = |row: &[f64]| -> Vec<f64> {
+    let mut step = |row: &[f64], out: &mut [f64]| {
         split(row, &mut s, &mut theta);
         if friction {
             ctr_core::friction::play_step(
@@ -164,26 +185,28 @@ pub fn actual_joints(t_s: &[f64], q: &[Vec<f64>], effects: &TimeEffects) -> Vec<
                 &mut theta,
             );
         }
-        let mut out = vec![0.0; width];
         for i in 0..n {
             out[2 * i] = s[i];
             out[2 * i + 1] = theta[i];
         }
-        out
     };
     let mut value = vec![0.0; width];
+    let mut scratch = vec![0.0; width];
     let mut next_corner = 0;
-    let mut out = Vec::with_capacity(t_s.len());
-    for &t in t_s {
+    let mut out = vec![0.0; t_s.len() * width];
+    for (k, &t) in t_s.iter().enumerate() {
         if friction {
             // corners of the delayed path up to this row's time, in order
             while next_corner < t_s.len() && t_s[next_corner] + tau <= t {
-                step(&cmd[next_corner]);
+                step(
+                    &cmd[next_corner * width..(next_corner + 1) * width],
+                    &mut scratch,
+                );
                 next_corner += 1;
             }
         }
         path_at(t_s, &cmd, t - tau, &mut value);
-        out.push(step(&value));
+        step(&value, &mut out[k * width..(k + 1) * width]);
     }
     out
 }

@@ -44,7 +44,7 @@ pub use tip::{FD_STEP_MM, FD_STEP_RAD, FK_ACCEPT_RESIDUAL, FK_RESIDUAL_TOLERANCE
 use crate::discrepancy::Gp;
 use crate::limits::JointLimits;
 use crate::margin::Margins;
-use crate::timeline::{actual_joints, TimeEffects};
+use crate::timeline::{actual_joints_flat, TimeEffects};
 use ctr_core::{Model, SolveError};
 use ctr_formats::{AnyRobot, Correction, Effects, ErrorKind, FkResult, RobotSpec};
 
@@ -373,18 +373,13 @@ impl RowModel {
         }
         let mut out = vec![0.0; joints.len()];
         for run in runs {
-            let q: Vec<Vec<f64>> = run
-                .clone()
-                .map(|r| joints[r * width..(r + 1) * width].to_vec())
-                .collect();
+            let q = &joints[run.start * width..run.end * width];
             let t: Vec<f64> = match t_s {
                 Some(t) => t[run.clone()].to_vec(),
                 None => run.clone().map(|r| r as f64).collect(),
             };
-            for (k, a) in actual_joints(&t, &q, &self.time).into_iter().enumerate() {
-                let r = run.start + k;
-                out[r * width..(r + 1) * width].copy_from_slice(&a);
-            }
+            let a = actual_joints_flat(&t, q, width, &self.time);
+            out[run.start * width..run.end * width].copy_from_slice(&a);
         }
         Ok(out)
     }
