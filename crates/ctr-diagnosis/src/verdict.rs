@@ -71,7 +71,8 @@ impl Verdict {
         };
         // outliers judged on what is left after the physics and the empirical term: a
         // structured residual is spread, not outlying
-        let (empirical, correction, left) = hybrid::fit(rec, e, &start.held, start.huber_mm());
+        let (empirical, correction, left) =
+            hybrid::fit(rec, e, &start.held, start.huber_mm(), start.threads);
         let (outliers, outlier_threshold_mm) = outlier_rows(rec, &left);
         let stability = Stability::new(rec, start.warn_margin, &start.margin0, margin, &outliers);
         let inliers = inlier_figures(rec, e, &start.held, &outliers);

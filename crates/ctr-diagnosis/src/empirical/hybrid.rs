@@ -31,12 +31,14 @@ const DOMINANT_TERMS: usize = 5;
 
 /// The empirical term fitted to the physical model's errors `e_row` (of the tip
 /// positions; the angular errors are left as they are) (held-out rows
-/// `held`, robust weights from `huber_mm`), and the errors it leaves on every row.
+/// `held`, robust weights from `huber_mm`), and the errors it leaves on every row; the
+/// cross-validation on `threads`.
 pub(crate) fn fit(
     rec: &Recording,
     e_row: &[RowError],
     held: &[bool],
     huber_mm: f64,
+    threads: usize,
 ) -> (Empirical, Correction, Vec<RowError>) {
     let fit_mask: Vec<bool> = held.iter().map(|h| !h).collect();
     let basis = Basis::new(rec, &tips(rec, e_row), &fit_mask);
@@ -44,7 +46,7 @@ pub(crate) fn fit(
     // the correction is of the tip position; the angular errors stay as they are
     let e = &positions(e_row);
     let w = empirical::weights(e, &fit_mask, huber_mm);
-    let terms = choose_size(&fields, e, &w);
+    let terms = choose_size(&fields, e, &w, threads);
     let chosen = empirical::pursue(&fields, e, &w, terms);
     let left = with_angles(&empirical::subtract(&fields, &chosen, e), e_row);
     let fig = figures(rec, &left, held);
@@ -108,12 +110,13 @@ pub(crate) fn fit(
 }
 
 /// The number of terms with the lowest cross-validated error on the rows weighted in
-/// `w` (ties to the smaller).
-pub(crate) fn choose_size(fields: &[Field], e: &[[f64; 3]], w: &[f64]) -> usize {
+/// `w` (ties to the smaller); the folds side by side on `threads` (the same result at
+/// any count: each fold's errors are added in fold order).
+pub(crate) fn choose_size(fields: &[Field], e: &[[f64; 3]], w: &[f64], threads: usize) -> usize {
     let fit_rows: Vec<usize> = (0..e.len()).filter(|&r| w[r] > 0.0).collect();
     let fold_of = |k: usize| (k / FOLD_BLOCK_ROWS) % FOLDS;
-    let mut sse = [0.0; SIZES.len()];
-    for fold in 0..FOLDS {
+    let folds: Vec<usize> = (0..FOLDS).collect();
+    let per_fold = ctr_formats::parallel::map(&folds, threads, |&fold| {
         let mut train = w.to_vec();
         let mut test = vec![false; e.len()];
         for (k, &r) in fit_rows.iter().enumerate() {
@@ -123,17 +126,22 @@ pub(crate) fn choose_size(fields: &[Field], e: &[[f64; 3]], w: &[f64]) -> usize 
             }
         }
         let order = empirical::path(fields, e, &train, MAX_TERMS);
-        for (s, &size) in SIZES.iter().enumerate() {
+        SIZES.map(|size| {
             let chosen = &order[..size.min(order.len())];
             let terms = empirical::coefficients(fields, chosen, e, &train);
             let left = empirical::subtract(fields, &terms, e);
-            sse[s] += left
-                .iter()
+            left.iter()
                 .zip(&test)
                 .zip(w)
                 .filter(|((_, t), _)| **t)
                 .map(|((v, _), w)| w * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
-                .sum::<f64>();
+                .sum::<f64>()
+        })
+    });
+    let mut sse = [0.0; SIZES.len()];
+    for fold in per_fold {
+        for (total, v) in sse.iter_mut().zip(fold) {
+            *total += v;
         }
     }
     let best = (0..SIZES.len())

@@ -94,7 +94,7 @@ impl Context<'_> {
     fn generic_size(&self, e_row: &[RowError]) -> usize {
         let e = &positions(e_row);
         let w = empirical::weights(e, &self.fit, self.huber_mm);
-        hybrid::choose_size(&self.yardstick, e, &w)
+        hybrid::choose_size(&self.yardstick, e, &w, self.threads)
     }
 }
 

@@ -300,10 +300,10 @@ impl Context<'_> {
     /// changes everyone's), with the assessment it judged them on.
     fn check_all(&self, start: &Start, found: &Found) -> (Vec<Checked>, Option<Assessment>) {
         let effects = found.effects();
-        let mut checked: Vec<Checked> = effects
-            .iter()
-            .map(|&c| self.check(&found.model, &found.e, c))
-            .collect();
+        // each finding's checks are independent of the others': side by side
+        let mut checked: Vec<Checked> = ctr_formats::parallel::map(&effects, self.threads, |&c| {
+            self.check(&found.model, &found.e, c)
+        });
         if effects.is_empty() || checked.iter().any(|c| c.failure.is_some()) {
             return (checked, None);
         }
