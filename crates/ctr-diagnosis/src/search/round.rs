@@ -69,16 +69,8 @@ pub(crate) fn not_fitted(round: usize, effect: EffectId, note: String) -> Trial 
 pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[EffectId]) -> Outcome {
     let (todo, not_applicable) = left(start, found, round, candidates);
     let n = start.user.robot.n_tubes();
-    // the screen: every (candidate, start) fitted on a sample of the fit rows with the
-    // effects found so far held, each on its own thread of the pool
-    let jobs: Vec<(EffectId, Vec<f64>)> = todo
-        .iter()
-        .flat_map(|&c| {
-            c.starts(n, sample_period(start.rec))
-                .into_iter()
-                .map(move |x0| (c, x0))
-        })
-        .collect();
+    // the screen: every candidate fitted from its starts on a sample of the fit rows
+    // with the effects found so far held, side by side on the pool
     let held = found.effects();
     let screen = Screen::new(
         &found.model,
@@ -88,8 +80,8 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
         start.huber_mm(),
         start.threads,
     );
-    let screened = ctr_formats::parallel::map(&jobs, start.threads, |(c, x0)| screen.fit(*c, x0));
-    let ranked = screen.rank(&todo, &jobs, screened, start.threads);
+    let screened = screen.fit_all(&todo, n, sample_period(start.rec), start.threads);
+    let ranked = screen.rank(&todo, &screened, start.threads);
     // which are fitted in full depends on the screen alone: they are fitted side by
     // side (the results do not depend on the threads)
     let mut on_screen = Vec::new();

@@ -36,6 +36,10 @@ use nalgebra::{DMatrix, DVector};
 pub(crate) const SCREEN_ROWS: usize = 400;
 /// Candidates fitted in full per round: those whose screen lowered the cost most.
 pub(crate) const FULL_FITS: usize = 3;
+/// Most sample rows a candidate's start is first fitted on, when it has several
+/// (clearance's peak angles, latency's signs): the starts only pick a basin, and the
+/// best one goes on from where it ended on the whole sample.
+pub(crate) const COARSE_ROWS: usize = 100;
 
 /// A round's screen: the model found so far and the sample of rows.
 pub(crate) struct Screen<'a> {
@@ -114,26 +118,77 @@ impl<'a> Screen<'a> {
         self.problem(vec![c]).fit(x0, MAX_FIT_ITERATIONS)
     }
 
-    /// The candidates `todo` by their best screen (`screened` holds one result per
-    /// `(candidate, start)` of `jobs`), lowest projected cost first; those that could
-    /// not be simulated from any start left out. The projections on `threads`.
+    /// Candidate `c` fitted alone from `x0` on every k-th row of the sample, at most
+    /// [`COARSE_ROWS`] (one thread): a start's first look.
+    fn fit_coarse(&self, c: EffectId, x0: &[f64]) -> Option<Fitted> {
+        let mut p = self.problem(vec![c]);
+        let every = p.rows.len().div_ceil(COARSE_ROWS).max(1);
+        p.rows = p.rows.iter().copied().step_by(every).collect();
+        p.fit(x0, MAX_FIT_ITERATIONS)
+    }
+
+    /// Every candidate of `todo` fitted alone on the sample from its starts
+    /// ([`EffectId::starts`], `sample_period_s` for latency's), on `threads`: one
+    /// start on the whole sample; several each on a coarse sample first
+    /// ([`COARSE_ROWS`]), the best of them (the first where none could be simulated)
+    /// then on the whole sample from where it ended. One result per candidate, in
+    /// `todo`'s order; the result does not depend on the thread count.
+    pub fn fit_all(
+        &self,
+        todo: &[EffectId],
+        n: usize,
+        sample_period_s: f64,
+        threads: usize,
+    ) -> Vec<Option<Fitted>> {
+        let starts: Vec<Vec<Vec<f64>>> =
+            todo.iter().map(|c| c.starts(n, sample_period_s)).collect();
+        // the single starts in full and the several on the coarse sample, side by side
+        let jobs: Vec<(usize, &Vec<f64>)> = starts
+            .iter()
+            .enumerate()
+            .flat_map(|(i, s)| s.iter().map(move |x0| (i, x0)))
+            .collect();
+        let first = ctr_formats::parallel::map(&jobs, threads, |&(i, x0)| {
+            if starts[i].len() == 1 {
+                self.fit(todo[i], x0)
+            } else {
+                self.fit_coarse(todo[i], x0)
+            }
+        });
+        let mut out: Vec<Option<Fitted>> = vec![None; todo.len()];
+        let mut again: Vec<(usize, Vec<f64>)> = Vec::new();
+        for (i, s) in starts.iter().enumerate() {
+            let mine = jobs.iter().zip(&first).filter(|((j, _), _)| *j == i);
+            if s.len() == 1 {
+                out[i] = mine.map(|(_, f)| f.clone()).next().flatten();
+                continue;
+            }
+            let best = mine
+                .filter_map(|(_, f)| f.as_ref())
+                .min_by(|a, b| a.cost.total_cmp(&b.cost))
+                .map_or_else(|| s[0].clone(), |f| f.x.clone());
+            again.push((i, best));
+        }
+        let finals = ctr_formats::parallel::map(&again, threads, |(i, x0)| self.fit(todo[*i], x0));
+        for ((i, _), f) in again.iter().zip(finals) {
+            out[*i] = f;
+        }
+        out
+    }
+
+    /// The candidates `todo` by their screen (`screened` holds one result per
+    /// candidate, [`fit_all`](Self::fit_all)), lowest projected cost first; those that
+    /// could not be simulated left out. The projections on `threads`.
     pub fn rank(
         &self,
         todo: &[EffectId],
-        jobs: &[(EffectId, Vec<f64>)],
-        screened: Vec<Option<Fitted>>,
+        screened: &[Option<Fitted>],
         threads: usize,
     ) -> Vec<Screened> {
         let best: Vec<(EffectId, &Fitted)> = todo
             .iter()
-            .filter_map(|&c| {
-                jobs.iter()
-                    .zip(&screened)
-                    .filter(|((jc, _), _)| *jc == c)
-                    .filter_map(|(_, r)| r.as_ref())
-                    .min_by(|a, b| a.cost.total_cmp(&b.cost))
-                    .map(|f| (c, f))
-            })
+            .zip(screened)
+            .filter_map(|(&c, f)| Some((c, f.as_ref()?)))
             .collect();
         let mut ranked = ctr_formats::parallel::map(&best, threads, |&(c, f)| Screened {
             effect: c,
