@@ -17,6 +17,19 @@
 //!   map the tip frame to the measured one after the mechanics (the core's
 //!   `Effects::measured`, `p = R_reg (p_tip + R_tip d) + t`), exactly.
 //!
+//! Two effects change the mechanics by a scale of each tube, and the core has their
+//! analytic derivatives too (its parameter Jacobian, unloaded rows only): `stiffness`
+//! (E I and G J of tube i times `f_i`) and `precurvature` (the curvature radius times
+//! `r_i`, so the curvature `k_i` times `1 / r_i`). With the columns `J_f`, `J_k` of the
+//! tip in the relative stiffness and curvature scales at the factors `f0`, `r0` solved
+//! at, to first order
+//!
+//! ```text
+//! p' = p + J_f (f - f0) / f0 - J_k (r - r0) / r0
+//! ```
+//!
+//! ([`Moving`] says which of these a linearisation carries; the measurement always.)
+//!
 //! [`Linearised::new`] solves the rows of a model once without its measurement, with
 //! the core's analytic joint Jacobian ([`crate::model::RowSolver::fk_jacobian`]; under
 //! a load, where the core has none, central differences of warm solves);
@@ -52,12 +65,46 @@ fn without_measurement(model: &ModelSpec) -> ModelSpec {
     m
 }
 
+/// What a [`Linearised`] moves without solving, besides the measurement (module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Moving {
+    /// The measurement alone: the rows solved plainly.
+    Measurement,
+    /// The effects on the joints (joint offsets, latency, friction): the joint
+    /// Jacobian.
+    Joints,
+    /// The tubes' stiffness and precurvature factors: the parameter Jacobian
+    /// (unloaded rows only).
+    Scales,
+    /// Both the joints and the scales.
+    Both,
+}
+
+impl Moving {
+    /// Whether the joint effects move.
+    pub fn joints(self) -> bool {
+        matches!(self, Moving::Joints | Moving::Both)
+    }
+
+    /// Whether the stiffness and precurvature factors move.
+    pub fn scales(self) -> bool {
+        matches!(self, Moving::Scales | Moving::Both)
+    }
+}
+
 /// The rows of a model solved once, unmeasured, with their joint Jacobians (module
 /// doc).
 #[derive(Clone, Debug)]
 pub struct Linearised {
+    /// What moves without solving.
+    moving: Moving,
     /// What every model [`predict`](Self::predict) is given must share.
     mechanics: ModelSpec,
+    /// The stiffness and precurvature radius factors solved at, per tube.
+    factors: (Vec<f64>, Vec<f64>),
+    /// Per recording row: `width` columns in the stiffness scales then the curvature
+    /// scales (when the scales move).
+    scales: Vec<[f64; 6]>,
     /// The effects on the joints solved at: a model with the same ones moves only its
     /// measurement.
     time: TimeEffects,
@@ -110,10 +157,46 @@ impl Linearised {
         rows: &[usize],
         threads: usize,
     ) -> Result<Option<Self>, SimError> {
+        Self::moving(model, rec, rows, threads, Moving::Joints)
+    }
+
+    /// [`new`](Self::new) with `moving` saying what moves without solving: with
+    /// [`Moving::Scales`] or [`Moving::Both`] the rows get the core's analytic
+    /// derivatives in each tube's stiffness and precurvature factors too, which
+    /// loaded rows do not have (`Ok(None)` there), and with [`Moving::Measurement`]
+    /// the rows are solved plainly (a model with other joint effects or factors is
+    /// then not predicted).
+    ///
+    /// ```
+    /// use ctr_analysis::{linearised::{Linearised, Moving}, model::ModelSpec, simulate::predict};
+    /// use ctr_formats::{Precurvature, Recording, RobotSpec};
+    /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+    ///     length_mm = 260.0\ncurved_length_mm = 90.0\ncurvature_radius_mm = 100.0\n\
+    ///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+    /// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n150,0,0,0,150\n".as_bytes(), "rec.csv", 1)?;
+    /// let m = ModelSpec::from_spec(&spec);
+    /// let lin = Linearised::moving(&m, &rec, &[0], 1, Moving::Scales)?.expect("unloaded");
+    /// // the radius 0.01 % longer: to first order, as a solve says
+    /// let mut moved = m.clone();
+    /// moved.effects.precurvature = Some(Precurvature { radius_factor: vec![1.0001] });
+    /// let (near, solved) = (lin.predict(&moved, &rec)?.unwrap(), predict(&moved, &rec, &[0])?);
+    /// assert!((0..3).all(|a| (near.p[0][a] - solved.p[0][a]).abs() < 1e-6));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn moving(
+        model: &ModelSpec,
+        rec: &Recording,
+        rows: &[usize],
+        threads: usize,
+        moving: Moving,
+    ) -> Result<Option<Self>, SimError> {
         if learned(model) {
             return Ok(None);
         }
         let loaded = loaded(model, rec, rows);
+        if loaded && moving.scales() {
+            return Ok(None);
+        }
         let unmeasured = without_measurement(model);
         let row_model = unmeasured.rows().map_err(SimError::Model)?;
         let width = 2 * model.robot.n_tubes();
@@ -124,26 +207,38 @@ impl Linearised {
         }
         let runs = crate::simulate::runs_holding(rec, rows);
         let mut out = Linearised {
-            mechanics: mechanics(model),
+            moving,
+            mechanics: compared(model, moving),
+            factors: factors(model),
+            scales: Vec::new(),
             time: row_model.time_effects().clone(),
             width,
             runs,
             solved,
             actual: vec![f64::NAN; n * width],
             tip: vec![Frame::identity(); n],
-            jacobian: vec![[0.0; 6]; n * width],
+            jacobian: vec![[0.0; 6]; if moving.joints() { n * width } else { 0 }],
         };
+        if moving.scales() {
+            out.scales = vec![[0.0; 6]; n * width];
+        }
         let parts = ctr_formats::parallel::map(&out.runs, threads.max(1), |&run| {
-            run_linearised(&row_model, rec, run, &out.solved, loaded)
+            run_linearised(&row_model, rec, run, &out.solved, loaded, moving)
         });
         for part in parts {
             let Some(part) = part? else {
                 return Ok(None);
             };
-            for (row, a, columns, tip) in part {
-                out.actual[row * width..(row + 1) * width].copy_from_slice(&a);
-                out.jacobian[row * width..(row + 1) * width].copy_from_slice(&columns);
-                out.tip[row] = tip;
+            for row in part {
+                let at = row.row * width..(row.row + 1) * width;
+                out.actual[at.clone()].copy_from_slice(&row.actual);
+                if moving.joints() {
+                    out.jacobian[at.clone()].copy_from_slice(&row.joints);
+                }
+                if moving.scales() {
+                    out.scales[at].copy_from_slice(&row.scales);
+                }
+                out.tip[row.row] = row.tip;
             }
         }
         Ok(Some(out))
@@ -154,12 +249,31 @@ impl Linearised {
     /// where `model` is not linearised. A fit's Jacobian linearises only where this is
     /// below the two solves per parameter it saves.
     pub fn solves_per_row(model: &ModelSpec, rec: &Recording, rows: &[usize]) -> Option<f64> {
+        Self::cost_per_row(model, rec, rows, Moving::Joints)
+    }
+
+    /// What [`moving`](Self::moving) costs per row with `moving`, in solves of the row
+    /// (measured on the real three-tube recording: [`ANALYTIC_SOLVES`],
+    /// [`SCALES_SOLVES`], [`BOTH_SOLVES`]; under a load the joints' probes, `1 + 4 n`);
+    /// `None` where it is not linearised that way (a learned term; the scales under a
+    /// load).
+    pub fn cost_per_row(
+        model: &ModelSpec,
+        rec: &Recording,
+        rows: &[usize],
+        moving: Moving,
+    ) -> Option<f64> {
         if learned(model) {
-            None
-        } else if loaded(model, rec, rows) {
-            Some((1 + 2 * 2 * model.robot.n_tubes()) as f64)
-        } else {
-            Some(ANALYTIC_SOLVES)
+            return None;
+        }
+        let loaded = loaded(model, rec, rows);
+        match moving {
+            Moving::Measurement => Some(1.0),
+            Moving::Joints if loaded => Some((1 + 2 * 2 * model.robot.n_tubes()) as f64),
+            Moving::Joints => Some(ANALYTIC_SOLVES),
+            _ if loaded => None,
+            Moving::Scales => Some(SCALES_SOLVES),
+            Moving::Both => Some(BOTH_SOLVES),
         }
     }
 
@@ -174,9 +288,10 @@ impl Linearised {
         model: &ModelSpec,
         rec: &Recording,
     ) -> Result<Option<Prediction>, SimError> {
-        if mechanics(model) != self.mechanics {
+        if compared(model, self.moving) != self.mechanics {
             return Ok(None);
         }
+        let scaled = self.scale_changes(model);
         let n = rec.rows.len();
         let row_model = model.rows().map_err(SimError::Model)?;
         let measurement = model.effects.core_effects::<1>();
@@ -189,6 +304,9 @@ impl Linearised {
         let w = self.width;
         // the same joint effects: the rows' actual joints are those solved at
         let same_joints = *row_model.time_effects() == self.time;
+        if !same_joints && !self.moving.joints() {
+            return Ok(None);
+        }
         for &run in &self.runs {
             let range = rec.runs[run].rows.clone();
             let shifted = if same_joints {
@@ -201,23 +319,34 @@ impl Linearised {
                     continue;
                 }
                 let tip = &self.tip[row];
-                if same_joints {
+                if same_joints && scaled.is_none() {
                     let measured = measurement.measured(tip);
                     out.p[row] = measured.position.into();
                     out.q[row] = canonical_quaternion(&measured.orientation());
                     continue;
                 }
-                let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
-                row_model
-                    .robot()
-                    .validate_joints(a)
-                    .map_err(|error| SimError::Joint { row, error })?;
                 let mut dp = Vector3::zeros();
                 let mut omega = Vector3::zeros();
-                for (j, col) in self.jacobian[row * w..(row + 1) * w].iter().enumerate() {
-                    let da = a[j] - self.actual[row * w + j];
-                    dp += Vector3::new(col[0], col[1], col[2]) * da;
-                    omega += Vector3::new(col[3], col[4], col[5]) * da;
+                let mut add = |columns: &[[f64; 6]], change: &mut dyn FnMut(usize) -> f64| {
+                    for (j, col) in columns.iter().enumerate() {
+                        let d = change(j);
+                        dp += Vector3::new(col[0], col[1], col[2]) * d;
+                        omega += Vector3::new(col[3], col[4], col[5]) * d;
+                    }
+                };
+                if !same_joints {
+                    let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
+                    row_model
+                        .robot()
+                        .validate_joints(a)
+                        .map_err(|error| SimError::Joint { row, error })?;
+                    let at = &self.actual[row * w..(row + 1) * w];
+                    add(&self.jacobian[row * w..(row + 1) * w], &mut |j| {
+                        a[j] - at[j]
+                    });
+                }
+                if let Some(change) = &scaled {
+                    add(&self.scales[row * w..(row + 1) * w], &mut |j| change[j]);
                 }
                 let moved = Frame {
                     rotation: Rotation3::new(omega).into_inner() * tip.rotation,
@@ -232,9 +361,67 @@ impl Linearised {
     }
 }
 
+impl Linearised {
+    /// The relative changes of `model`'s stiffness scales then curvature scales from
+    /// those solved at (module doc: `(f - f0) / f0`, `-(r - r0) / r0`), `None` where
+    /// there is none.
+    fn scale_changes(&self, model: &ModelSpec) -> Option<Vec<f64>> {
+        if !self.moving.scales() {
+            return None;
+        }
+        let (f, r) = factors(model);
+        let (f0, r0) = &self.factors;
+        let change: Vec<f64> = f
+            .iter()
+            .zip(f0)
+            .map(|(f, f0)| (f - f0) / f0)
+            .chain(r.iter().zip(r0).map(|(r, r0)| -(r - r0) / r0))
+            .collect();
+        change.iter().any(|&d| d != 0.0).then_some(change)
+    }
+}
+
 /// Cost of a row solved with the core's analytic joint Jacobian, in plain solves
 /// (measured: 3.0-3.2x on the real three-tube and a generated recording).
-const ANALYTIC_SOLVES: f64 = 3.0;
+pub const ANALYTIC_SOLVES: f64 = 3.0;
+/// Cost of a row solved with the core's analytic parameter Jacobian (stiffness and
+/// curvature scales), in plain solves (measured: 4.85x on the real three-tube
+/// recording, `examples`-free: a loop over its rows).
+pub const SCALES_SOLVES: f64 = 4.9;
+/// Cost of a row solved with both Jacobians, in plain solves (measured: 7.9x there).
+pub const BOTH_SOLVES: f64 = 7.9;
+
+/// What a linearisation compares of two models: their mechanics, without the
+/// stiffness and precurvature factors when `moving` moves them.
+fn compared(model: &ModelSpec, moving: Moving) -> ModelSpec {
+    let mut m = mechanics(model);
+    if moving.scales() {
+        m.effects.stiffness = None;
+        m.effects.precurvature = None;
+    }
+    m
+}
+
+/// `model`'s stiffness factors and precurvature radius factors per tube (1 where it
+/// has none).
+fn factors(model: &ModelSpec) -> (Vec<f64>, Vec<f64>) {
+    let n = model.robot.n_tubes();
+    let each = |v: Option<&Vec<f64>>| -> Vec<f64> {
+        (0..n)
+            .map(|i| v.and_then(|v| v.get(i)).copied().unwrap_or(1.0))
+            .collect()
+    };
+    (
+        each(model.effects.stiffness.as_ref().map(|s| &s.factor)),
+        each(
+            model
+                .effects
+                .precurvature
+                .as_ref()
+                .map(|p| &p.radius_factor),
+        ),
+    )
+}
 /// Probe step of a feed under a load, mm: the central difference's truncation
 /// (relative ~1e-6 on millimetre-scale curvature) and the solver's residual over the
 /// step (~1e-9) both far below what a fit's step needs.
@@ -294,22 +481,31 @@ fn probed(
     Ok(tip)
 }
 
-/// A linearised row: its index, actual joints, Jacobian columns and unmeasured tip.
-type RowLinearised = (usize, Vec<f64>, Vec<[f64; 6]>, Frame<f64>);
+/// A linearised row: its index, actual joints, unmeasured tip, and its columns in the
+/// joints and in the scales (empty where they do not move).
+struct RowLinearised {
+    row: usize,
+    actual: Vec<f64>,
+    tip: Frame<f64>,
+    joints: Vec<[f64; 6]>,
+    scales: Vec<[f64; 6]>,
+}
 
-/// The rows `solved` of run `run` solved along it with their joint Jacobians (probed
-/// where `loaded`); `Ok(None)` where the core has no Jacobian for them.
+/// The rows `solved` of run `run` solved along it with the columns `moving` asks for
+/// (the joints' probed where `loaded`); `Ok(None)` where the core has no Jacobian for
+/// them.
 fn run_linearised(
     row_model: &RowModel,
     rec: &Recording,
     run: usize,
     solved: &[bool],
     loaded: bool,
+    moving: Moving,
 ) -> Result<Option<Vec<RowLinearised>>, SimError> {
     let range = rec.runs[run].rows.clone();
     let shifted = shifted_joints(row_model, rec, run);
     let mut solver = row_model.solver();
-    let mut columns = Vec::new();
+    let (mut joints, mut scales) = (Vec::new(), Vec::new());
     let mut out = Vec::new();
     for (k, row) in range.enumerate() {
         if !solved[row] {
@@ -317,22 +513,29 @@ fn run_linearised(
         }
         let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
         let force = rec.rows[row].force_n;
-        let solve = if loaded {
-            probed(&mut solver, a, force, &mut columns)
-        } else {
-            solver.fk_jacobian(a, &mut columns)
+        let solve = match moving {
+            Moving::Measurement => solver.fk_actual(a, force),
+            Moving::Joints if loaded => probed(&mut solver, a, force, &mut joints),
+            Moving::Joints => solver.fk_jacobian(a, &mut joints),
+            Moving::Scales => solver.fk_scales(a, &mut scales),
+            // the scales from a copy: the solver moves on from the first solve alone,
+            // as a simulation's does
+            Moving::Both => solver
+                .fk_jacobian(a, &mut joints)
+                .and_then(|tip| solver.clone().fk_scales(a, &mut scales).map(|_| tip)),
         };
         let tip = match solve {
             Ok(tip) => tip,
             Err(SolveError::Unsupported(_)) => return Ok(None),
             Err(error) => return Err(row_error(row, error)),
         };
-        out.push((
+        out.push(RowLinearised {
             row,
-            a.to_vec(),
-            columns.clone(),
-            frame_of(tip.position, tip.quaternion),
-        ));
+            actual: a.to_vec(),
+            tip: frame_of(tip.position, tip.quaternion),
+            joints: joints.clone(),
+            scales: scales.clone(),
+        });
     }
     Ok(Some(out))
 }

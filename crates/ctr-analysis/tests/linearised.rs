@@ -1,15 +1,17 @@
 //! The linearised prediction ([`Linearised`]) against solving again: at the point
 //! linearised it is the solved prediction; for a step of any effect on the joints or the
 //! measurement, its central difference is the solved central difference (the chain
-//! rule through the core's analytic joint Jacobian); a change of the mechanics, a load
-//! or a learned term is refused rather than linearised wrongly.
+//! rule through the core's analytic joint Jacobian), and so for a tube's stiffness or
+//! precurvature factor where the scales move (its parameter Jacobian); a change it does
+//! not carry, a load where it has no derivative, or a learned term is refused rather
+//! than linearised wrongly.
 
-use ctr_analysis::linearised::Linearised;
+use ctr_analysis::linearised::{Linearised, Moving};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::{predict_rows, Prediction};
 use ctr_formats::{
     Clearance, Friction, Gravity, JointOffset, Latency, Precurvature, Recording, Registration,
-    SensorOffset, SensorRotation,
+    SensorOffset, SensorRotation, Stiffness,
 };
 
 mod common;
@@ -246,4 +248,109 @@ fn a_learned_term_is_not_linearised() {
     let (mut m, rec, rows) = setting();
     m.empirical = Some(ctr_formats::Correction::default());
     assert!(Linearised::new(&m, &rec, &rows, 2).unwrap().is_none());
+}
+
+/// The setting with every tube's stiffness and precurvature off their nominal.
+fn scaled_setting() -> (ModelSpec, Recording, Vec<usize>) {
+    let (mut m, rec, rows) = setting();
+    m.effects.stiffness = Some(Stiffness {
+        factor: vec![1.0, 0.9, 1.1],
+    });
+    m.effects.precurvature = Some(Precurvature {
+        radius_factor: vec![1.0, 1.05, 0.95],
+    });
+    (m, rec, rows)
+}
+
+/// Steps of a stiffness and a precurvature factor (the model moved by `+d` and `-d`
+/// of the step): a fit's natural step.
+fn scale_steps(m: &ModelSpec) -> Vec<(&'static str, Step<'_>)> {
+    let at = move |f: fn(&mut ModelSpec, f64)| -> Step<'_> {
+        Box::new(move |d| {
+            let mut moved = m.clone();
+            f(&mut moved, d);
+            moved
+        })
+    };
+    vec![
+        (
+            "stiffness factor of tube 2",
+            at(|m, d| m.effects.stiffness.as_mut().unwrap().factor[1] += 0.01 * d),
+        ),
+        (
+            "stiffness factor of tube 3",
+            at(|m, d| m.effects.stiffness.as_mut().unwrap().factor[2] += 0.01 * d),
+        ),
+        (
+            "radius factor of tube 1",
+            at(|m, d| m.effects.precurvature.as_mut().unwrap().radius_factor[0] += 0.01 * d),
+        ),
+        (
+            "radius factor of tube 3",
+            at(|m, d| m.effects.precurvature.as_mut().unwrap().radius_factor[2] += 0.01 * d),
+        ),
+    ]
+}
+
+#[test]
+fn with_the_scales_their_central_differences_are_the_solved_ones_too() {
+    let (m, rec, rows) = scaled_setting();
+    let lin = Linearised::moving(&m, &rec, &rows, 2, Moving::Both)
+        .unwrap()
+        .expect("unloaded");
+    let worst = at_the_point(&lin, &m, &rec, &rows);
+    assert!(worst < 1e-9, "at the point: {worst} apart");
+    every_effect_as_solved(&lin, &m, &rec, &rows);
+    for (name, step) in scale_steps(&m) {
+        let gap = apart(&lin, &rec, &rows, &step);
+        assert!(gap <= LINEARISATION, "{name}: {gap:.2e} apart");
+    }
+}
+
+#[test]
+fn each_way_refuses_what_it_does_not_carry() {
+    let (m, rec, rows) = scaled_setting();
+    let mut later = m.clone();
+    later.effects.latency.as_mut().unwrap().tau_s += 1e-3;
+    let mut softer = m.clone();
+    softer.effects.stiffness.as_mut().unwrap().factor[1] *= 0.99;
+    let mut turned = m.clone();
+    turned.effects.registration.as_mut().unwrap().rotation_deg += 0.1;
+    for (way, joints, scales) in [
+        (Moving::Measurement, false, false),
+        (Moving::Joints, true, false),
+        (Moving::Scales, false, true),
+    ] {
+        let lin = Linearised::moving(&m, &rec, &rows, 2, way)
+            .unwrap()
+            .expect("unloaded");
+        let predicts = |model: &ModelSpec| lin.predict(model, &rec).unwrap().is_some();
+        assert_eq!(predicts(&later), joints, "{way:?} and a latency");
+        assert_eq!(predicts(&softer), scales, "{way:?} and a stiffness");
+        // the measurement moves with every way, exactly
+        assert!(predicts(&turned), "{way:?} and a registration");
+        let gap = apart(&lin, &rec, &rows, &|d| {
+            let mut moved = m.clone();
+            moved.effects.registration.as_mut().unwrap().rotation_deg += 0.05 * d;
+            moved
+        });
+        assert!(gap <= ROUNDING, "{way:?}: the registration {gap:.2e} apart");
+    }
+}
+
+#[test]
+fn under_gravity_the_scales_are_not_linearised() {
+    let (mut m, rec, rows) = scaled_setting();
+    m.effects.clearance = None;
+    m.effects.gravity = Some(Gravity {
+        direction_w: [0.0, 0.0, -1.0],
+        g_m_s2: 9.81,
+    });
+    let rows: Vec<usize> = rows.into_iter().filter(|r| r % 9 == 0).collect();
+    for way in [Moving::Scales, Moving::Both] {
+        assert!(Linearised::cost_per_row(&m, &rec, &rows, way).is_none());
+        assert!(Linearised::moving(&m, &rec, &rows, 2, way)
+            .unwrap()
+            .is_none());
+    }
 }

@@ -16,6 +16,7 @@
 //! | `sensor_offset` | tracked point in the tip frame (mm) |
 //! | `sensor_rotation` | rotation vector of the sensor's frame in the tip frame (deg); this project's extension, seen only by orientation or tangent columns |
 
+use ctr_analysis::linearised::Moving;
 use ctr_analysis::model::ModelSpec;
 use ctr_core::Model;
 use ctr_formats::{
@@ -154,20 +155,21 @@ impl EffectId {
         }
     }
 
-    /// True for the effects that leave the mechanics alone: on the joints (joint
-    /// offsets, latency, the play friction) or on the measurement (sensor offset and
-    /// rotation, registration). A fit's Jacobian takes their columns from the joint
-    /// Jacobian and the measurement ([`ctr_analysis::linearised`]), without solving.
-    pub(crate) fn leaves_mechanics(self) -> bool {
-        matches!(
-            self,
-            EffectId::Friction
-                | EffectId::JointOffset
-                | EffectId::Latency
-                | EffectId::Registration
-                | EffectId::SensorOffset
-                | EffectId::SensorRotation
-        )
+    /// What a linearisation of the rows must carry to move this effect's predictions
+    /// without solving ([`ctr_analysis::linearised`]): the measurement (sensor offset
+    /// and rotation, registration), the joints (joint offsets, latency, the play
+    /// friction) or the tubes' scales (stiffness, precurvature); `None` for the effects
+    /// that are solved (clearance, gravity, torsion). A fit's Jacobian takes these
+    /// columns from the linearisation where it costs fewer solves.
+    pub(crate) fn linearised_as(self) -> Option<Moving> {
+        match self {
+            EffectId::Registration | EffectId::SensorOffset | EffectId::SensorRotation => {
+                Some(Moving::Measurement)
+            }
+            EffectId::Friction | EffectId::JointOffset | EffectId::Latency => Some(Moving::Joints),
+            EffectId::Stiffness | EffectId::Precurvature => Some(Moving::Scales),
+            EffectId::Torsion | EffectId::Clearance | EffectId::Gravity => None,
+        }
     }
 
     /// Number of parameters for a robot of `n` tubes.

@@ -3,18 +3,22 @@
 //! side cannot be simulated), one column per job on the thread pool
 //! ([`ctr_formats::parallel::map`]).
 //!
-//! The columns of the effects that leave the mechanics alone (on the joints: joint
-//! offsets, latency, the play friction; on the measurement: sensor offset and
-//! rotation, registration; [`crate::candidates::EffectId::leaves_mechanics`]) do not solve the rows again:
-//! the rows are solved once at the parameters with the core's analytic joint Jacobian
-//! ([`Linearised`], beside the solved columns; under a load, where the core has no
-//! analytic one, by probes, and only where that costs fewer solves than the columns),
-//! and each step's prediction is the chain rule through it, exact in the measurement
-//! (checked against solving again in `ctr-analysis/tests/linearised.rs`). Measured on
-//! the real three-tube recording: the search's solves went from 7.6 to 2.4 million.
+//! Most columns do not solve the rows again
+//! ([`crate::candidates::EffectId::linearised_as`]): the rows are
+//! solved once at the parameters ([`Linearised`], one job beside the solved columns)
+//! with what the columns need, and each step's prediction is the chain rule through
+//! it, exact in the measurement (checked against solving again in
+//! `ctr-analysis/tests/linearised.rs`). The measurement's columns (sensor offset and
+//! rotation, registration) need a plain solve; the joint effects' (joint offsets,
+//! latency, the play friction) the core's analytic joint Jacobian (under a load, where
+//! the core has none, probes); the stiffness and precurvature factors' its analytic
+//! parameter Jacobian (unloaded rows only). Of these the cheapest in solves that covers
+//! the most columns is taken, where it costs fewer solves than the two per column it
+//! saves. Measured on the real three-tube recording: the search's solves went from
+//! 7.6 to 2.4 million with the joints, and to 1.7 million with the scales.
 
 use crate::fit::Problem;
-use ctr_analysis::linearised::Linearised;
+use ctr_analysis::linearised::{Linearised, Moving};
 use nalgebra::{DMatrix, DVector};
 
 impl Problem<'_> {
@@ -33,7 +37,7 @@ impl Problem<'_> {
         p0: &[f64],
     ) -> (DMatrix<f64>, Vec<[bool; 2]>) {
         let np = x.len();
-        let cheap = self.linearised_columns(x);
+        let (cheap, way) = self.linearised_columns(x);
         // first the rows linearised (one job) beside the columns that need solves, then
         // the columns of the effects that leave the mechanics alone, without solving
         // where the rows could be linearised; `threads` is at least 1 (0: all cores)
@@ -47,7 +51,10 @@ impl Problem<'_> {
         let alone = if jobs.len() == 1 { threads } else { 1 };
         let done = ctr_formats::parallel::map(&jobs, threads, |job| match job {
             Some(j) => (Some(self.column(x, p0, *j, None)), None),
-            None => (None, self.moves_without_solving(x, alone)),
+            None => (
+                None,
+                way.and_then(|w| self.moves_without_solving(x, w, alone)),
+            ),
         });
         let mut columns: Vec<Option<(Vec<f64>, [bool; 2])>> = vec![None; np];
         let mut moves = None;
@@ -116,31 +123,55 @@ impl Problem<'_> {
         (col, blocked)
     }
 
-    /// Whether parameter `j` belongs to an effect that leaves the mechanics alone
-    /// (a clearance table never does).
-    fn leaves_mechanics(&self, j: usize) -> bool {
+    /// How parameter `j`'s predictions can move without solving
+    /// ([`crate::candidates::EffectId::linearised_as`]; a clearance table never can).
+    fn linearised_as(&self, j: usize) -> Option<Moving> {
         let b = self.effect_of(j);
-        self.table(b).is_none() && b.leaves_mechanics()
+        self.table(b).map_or_else(|| b.linearised_as(), |_| None)
     }
 
-    /// The columns at `x` taken from the linearised rows: those of the effects that
-    /// leave the mechanics alone, where linearising costs fewer solves of each row
-    /// ([`Linearised::solves_per_row`]: under a load its probes) than the two per
-    /// column it saves; none else.
-    fn linearised_columns(&self, x: &[f64]) -> Vec<usize> {
-        let cheap: Vec<usize> = (0..x.len()).filter(|&j| self.leaves_mechanics(j)).collect();
-        let cost = Linearised::solves_per_row(&self.model(x), self.rec, &self.rows);
-        match cost {
-            Some(c) if !cheap.is_empty() && c < (2 * cheap.len()) as f64 => cheap,
-            _ => Vec::new(),
+    /// The columns at `x` taken from the linearised rows, and what the linearisation
+    /// carries: of the four ways to linearise ([`Moving`]), the one that saves the most
+    /// solves of each row (two per column it covers, less its cost,
+    /// [`Linearised::cost_per_row`]: under a load the joints' probes, and no scales),
+    /// if any saves some; none else. The measurement's columns come with any.
+    fn linearised_columns(&self, x: &[f64]) -> (Vec<usize>, Option<Moving>) {
+        let model = self.model(x);
+        let kinds: Vec<Option<Moving>> = (0..x.len()).map(|j| self.linearised_as(j)).collect();
+        let covered = |way: Moving| -> Vec<usize> {
+            (0..x.len())
+                .filter(|&j| match kinds[j] {
+                    Some(Moving::Measurement) => true,
+                    Some(Moving::Joints) => way.joints(),
+                    Some(Moving::Scales) => way.scales(),
+                    _ => false,
+                })
+                .collect()
+        };
+        let mut best: (f64, Vec<usize>, Option<Moving>) = (0.0, Vec::new(), None);
+        for way in [
+            Moving::Measurement,
+            Moving::Joints,
+            Moving::Scales,
+            Moving::Both,
+        ] {
+            let Some(cost) = Linearised::cost_per_row(&model, self.rec, &self.rows, way) else {
+                continue;
+            };
+            let columns = covered(way);
+            let saved = (2 * columns.len()) as f64 - cost;
+            if saved > best.0 {
+                best = (saved, columns, Some(way));
+            }
         }
+        (best.1, best.2)
     }
 
-    /// The rows at `x` linearised (their runs on `threads`) for the columns of the
-    /// effects that leave the mechanics alone, when there are such columns and the
-    /// model has a joint Jacobian (else they are solved like the others).
-    fn moves_without_solving(&self, x: &[f64], threads: usize) -> Option<Moves> {
-        let linearised = Linearised::new(&self.model(x), self.rec, &self.rows, threads)
+    /// The rows at `x` linearised as `way` (their runs on `threads`) for the columns
+    /// it covers, when the model has the Jacobians it needs (else they are solved like
+    /// the others).
+    fn moves_without_solving(&self, x: &[f64], way: Moving, threads: usize) -> Option<Moves> {
+        let linearised = Linearised::moving(&self.model(x), self.rec, &self.rows, threads, way)
             .ok()
             .flatten()?;
         let mut moves = Moves {

@@ -12,8 +12,8 @@
 
 use crate::margin::{self, Margin, Margins, MAX_JOINTS, PROBE_STEP, SCREEN_FACTOR};
 use ctr_core::{
-    Effects as CoreEffects, Gravity, JointJacobian, Joints, Loads, Model, Request, Robot, Solution,
-    SolveError, Solver, MAX_TUBES,
+    Effects as CoreEffects, Gravity, JointJacobian, Joints, Loads, Model, ParameterJacobian,
+    Request, Robot, Solution, SolveError, Solver, MAX_TUBES,
 };
 use ctr_formats::{joints_of, AnyRobot, Effects, FkResult};
 use nalgebra::Vector3;
@@ -200,6 +200,21 @@ impl<const N: usize> Kernel<N> {
             self.request(q, [0.0; 3]).joint_jacobian(jacobian),
         )
     }
+
+    /// [`solve`](Self::solve) without a tip force, with the parameter Jacobian of the
+    /// measured tip written into `jacobian` (the core's analytic one, at the scales of
+    /// this kernel's robot; under gravity the core has none: [`SolveError::Unsupported`]).
+    pub fn parameter_jacobian(
+        &self,
+        solver: &mut Solver<f64, N>,
+        q: Joints<f64, N>,
+        jacobian: &mut ParameterJacobian<f64, N>,
+    ) -> Result<Solution<f64, N>, SolveError> {
+        solver.solve(
+            &self.robot,
+            self.request(q, [0.0; 3]).parameter_jacobian(jacobian),
+        )
+    }
 }
 
 /// A [`Kernel`] for the tube count a file decided.
@@ -300,6 +315,40 @@ impl Bound<'_> {
                 for (feed, rotation) in jac.feed.iter().zip(&jac.rotation) {
                     columns.push(core::array::from_fn(|a| feed[a]));
                     columns.push(core::array::from_fn(|a| rotation[a] * per_degree));
+                }
+                FkResult::from_solution(&sol, f64::NAN)
+            })
+        })
+    }
+
+    /// [`fk`](Self::fk) of a row without a tip force, with the derivatives of the tip as
+    /// measured in each tube's stiffness and precurvature written into `columns`: `2 n`
+    /// columns, first per tube the stiffness scale (E I and G J together, the
+    /// `stiffness` effect's factor relative to the one solved at), then per tube the
+    /// curvature scale (the precurvature `k_i` relative to the one solved at; the
+    /// `precurvature` effect's radius factor is its reciprocal); entries as
+    /// [`fk_jacobian`](Self::fk_jacobian)'s. The core's analytic Jacobian: under gravity
+    /// it has none ([`SolveError::Unsupported`]). No stability margin.
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count.
+    pub fn fk_scales(
+        &mut self,
+        actual: &[f64],
+        columns: &mut Vec<[f64; 6]>,
+    ) -> Result<FkResult, SolveError> {
+        each_count!(self, |k, s| {
+            let q = joints_of(actual);
+            let mut jac = ParameterJacobian::nan();
+            k.parameter_jacobian(s, q, &mut jac).map(|sol| {
+                columns.clear();
+                for (bending, torsional) in
+                    jac.bending_stiffness.iter().zip(&jac.torsional_stiffness)
+                {
+                    columns.push(core::array::from_fn(|a| bending[a] + torsional[a]));
+                }
+                for curvature in &jac.curvature {
+                    columns.push(core::array::from_fn(|a| curvature[a]));
                 }
                 FkResult::from_solution(&sol, f64::NAN)
             })

@@ -598,6 +598,36 @@ impl RowSolver<'_> {
         self.bound.fk_jacobian(actual, columns)
     }
 
+    /// The tip of actual joints `actual` (file order and units; joint offsets and time
+    /// effects applied) without a tip force, with its derivatives in each tube's
+    /// stiffness scale and then each tube's curvature scale at this model's robot
+    /// written into `columns` (`2 n` columns; entries 0..3 the position's, 3..6 the tip
+    /// frame's angular velocity, both as measured): the core's analytic parameter
+    /// Jacobian. Under gravity the core has none ([`SolveError::Unsupported`]). No
+    /// stability margin.
+    ///
+    /// ```
+    /// use ctr_analysis::model::ModelSpec;
+    /// use ctr_formats::AnyRobot;
+    /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
+    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
+    /// let mut columns = Vec::new();
+    /// rows.solver().fk_scales(&[50.0, 0.0], &mut columns)?;
+    /// assert!(columns[0].iter().all(|v| v.abs() < 1e-12)); // one tube: its stiffness does not matter
+    /// assert!(columns[1][0].abs() > 1.0); // its curvature does
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Panics
+    /// If `actual.len() != 2 * n_tubes`.
+    pub fn fk_scales(
+        &mut self,
+        actual: &[f64],
+        columns: &mut Vec<[f64; 6]>,
+    ) -> Result<FkResult, SolveError> {
+        self.bound.fk_scales(actual, columns)
+    }
+
     /// [`fk`](Self::fk) with the backbone: the points (x, y, z, mm) from the guide exit
     /// to the tip, one per integration step, in the measuring frame (the registration
     /// applied, as to the tip). For models without time effects.
