@@ -470,9 +470,11 @@ impl Likelihood {
 }
 
 /// `K^-1` from the lower triangle of `K`'s Cholesky factor `l` (its upper triangle
-/// ignored): `L^-1` by forward substitution on contiguous columns (only the lower
-/// triangle of each, `n^3 / 6` multiply-adds), then `K^-1 = L^-T L^-1` as one matrix
-/// product. The same numbers as solving `K X = I`, in a fraction of its time (the
+/// ignored): `M = L^-1` by forward substitution on contiguous columns (only the lower
+/// triangle of each, `n^3 / 6` multiply-adds), then `K^-1 = M^T M`, each entry once for
+/// both triangles and over the rows where both columns of `M` are not zero
+/// (`K^-1_ij = sum_{k >= max(i, j)} M_ki M_kj`: another `n^3 / 6`, a sixth of the full
+/// product). The same numbers as solving `K X = I`, in a fraction of its time (the
 /// likelihood's gradient needs the whole inverse at every evaluation).
 fn inverse_of_factor(l: &DMatrix<f64>) -> DMatrix<f64> {
     let n = l.nrows();
@@ -491,7 +493,36 @@ fn inverse_of_factor(l: &DMatrix<f64>) -> DMatrix<f64> {
             }
         }
     }
-    m.tr_mul(&m)
+    let mut inverse = DMatrix::<f64>::zeros(n, n);
+    // column-major: column c is m[c n .. (c + 1) n]
+    let m = m.as_slice();
+    for i in 0..n {
+        let ci = &m[i * n + i..(i + 1) * n];
+        for j in 0..=i {
+            let v = dot(ci, &m[j * n + i..(j + 1) * n]);
+            inverse[(i, j)] = v;
+            inverse[(j, i)] = v;
+        }
+    }
+    inverse
+}
+
+/// `a . b` over four running sums (which the compiler keeps in vector registers).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut sums = [0.0; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            sums[k] += x[k] * y[k];
+        }
+    }
+    (sums[0] + sums[1]) + (sums[2] + sums[3]) + tail
 }
 
 impl CostFunction for &Likelihood {

@@ -173,11 +173,20 @@ fn lsq(fields: &[Field], chosen: &[usize], e: &[[f64; 3]], w: &[f64]) -> (Vec<f6
 /// part orthogonal to those already chosen lowers the weighted squared error most
 /// (Gram-Schmidt, so a step costs one pass over the candidates).
 pub(crate) fn path(fields: &[Field], e: &[[f64; 3]], w: &[f64], k: usize) -> Vec<usize> {
+    // a row of weight zero adds exact zeros to every sum: left out, unless a value
+    // there is not finite (which makes the sums NaN, as it must)
+    let finite = |r: usize| {
+        e[r].iter()
+            .chain(fields.iter().flat_map(|f| &f[r]))
+            .all(|v| v.is_finite())
+    };
+    let rows: Vec<usize> = (0..e.len())
+        .filter(|&r| w[r] != 0.0 || !finite(r))
+        .collect();
     let flat = |f: &[[f64; 3]]| -> Vec<f64> {
-        f.iter()
-            .zip(w)
-            .flat_map(|(v, w)| {
-                let s = w.sqrt();
+        rows.iter()
+            .flat_map(|&r| {
+                let (v, s) = (f[r], w[r].sqrt());
                 [s * v[0], s * v[1], s * v[2]]
             })
             .collect()
