@@ -385,11 +385,12 @@ impl Linearised {
 /// (measured: 3.0-3.2x on the real three-tube and a generated recording).
 pub const ANALYTIC_SOLVES: f64 = 3.0;
 /// Cost of a row solved with the core's analytic parameter Jacobian (stiffness and
-/// curvature scales), in plain solves (measured: 4.85x on the real three-tube
-/// recording, `examples`-free: a loop over its rows).
+/// curvature scales), in plain solves (measured: 4.9-5.1x on the real three-tube
+/// recording, a loop over its rows).
 pub const SCALES_SOLVES: f64 = 4.9;
-/// Cost of a row solved with both Jacobians, in plain solves (measured: 7.9x there).
-pub const BOTH_SOLVES: f64 = 7.9;
+/// Cost of a row solved with both Jacobians from one derivative pass, in plain solves
+/// (measured: 6.9-7.0x there; 7.9x as two passes).
+pub const BOTH_SOLVES: f64 = 7.0;
 
 /// What a linearisation compares of two models: their mechanics, without the
 /// stiffness and precurvature factors when `moving` moves them.
@@ -518,11 +519,7 @@ fn run_linearised(
             Moving::Joints if loaded => probed(&mut solver, a, force, &mut joints),
             Moving::Joints => solver.fk_jacobian(a, &mut joints),
             Moving::Scales => solver.fk_scales(a, &mut scales),
-            // the scales from a copy: the solver moves on from the first solve alone,
-            // as a simulation's does
-            Moving::Both => solver
-                .fk_jacobian(a, &mut joints)
-                .and_then(|tip| solver.clone().fk_scales(a, &mut scales).map(|_| tip)),
+            Moving::Both => solver.fk_jacobians(a, &mut joints, &mut scales),
         };
         let tip = match solve {
             Ok(tip) => tip,

@@ -491,3 +491,66 @@ fn joint_jacobian_with_boundary_friction_matches_finite_differences() {
         }
     }
 }
+
+/// The joint and parameter Jacobians from one pass ([`Request::jacobians`]) against
+/// each from its own pass: the same derivative, so equal to rounding.
+fn both_at_once<const N: usize>(robot: &Robot<f64, N>, name: &str, model: Model, seed: u64) {
+    let mut rng = Rng(seed);
+    for _ in 0..CONFIGS {
+        let q = random_joints::<N>(name, &mut rng);
+        let (mut j, mut p) = (
+            ctr_core::JointJacobian::nan(),
+            ctr_core::ParameterJacobian::nan(),
+        );
+        let (mut j1, mut p1) = (j, p);
+        let mut solver = tight_solver::<N>();
+        solver
+            .solve(
+                robot,
+                Request::new(q, model).cold().jacobians(&mut j, &mut p),
+            )
+            .unwrap();
+        solver
+            .solve(robot, Request::new(q, model).cold().joint_jacobian(&mut j1))
+            .unwrap();
+        solver
+            .solve(
+                robot,
+                Request::new(q, model).cold().parameter_jacobian(&mut p1),
+            )
+            .unwrap();
+        let together = j.feed.iter().chain(&j.rotation).chain(&p.bending_stiffness);
+        let together = together.chain(&p.torsional_stiffness).chain(&p.curvature);
+        let alone = j1
+            .feed
+            .iter()
+            .chain(&j1.rotation)
+            .chain(&p1.bending_stiffness);
+        let alone = alone.chain(&p1.torsional_stiffness).chain(&p1.curvature);
+        for (k, (a, b)) in together.zip(alone).enumerate() {
+            let gap = (a - b).norm();
+            assert!(
+                gap <= 1e-9 * (1.0 + b.norm()),
+                "{name} {model:?} column {k} at {q:?}: {gap:.3e}\n together {a}\n alone {b}"
+            );
+        }
+    }
+}
+
+#[test]
+fn joint_and_parameter_jacobians_at_once_are_each_alone() {
+    for model in [Model::Torsion, Model::Rigid] {
+        both_at_once::<2>(
+            &robot::<2>("liu2023"),
+            "liu2023",
+            model,
+            0x2468_ACE0_1357_9BDF,
+        );
+        both_at_once::<3>(
+            &robot::<3>("nitinol3"),
+            "nitinol3",
+            model,
+            0x1357_9BDF_2468_ACE0,
+        );
+    }
+}

@@ -81,6 +81,7 @@ fn solves_allocate_nothing() {
     let mut jac = JointJacobian::nan();
     let mut jac2 = JointJacobian::nan();
     let mut parameters = ParameterJacobian::nan();
+    let (mut jac3, mut parameters3) = (JointJacobian::nan(), ParameterJacobian::nan());
     let mut compliance = Matrix6::zeros();
     let none = Effects::default();
     let n = allocations_during(|| {
@@ -102,6 +103,11 @@ fn solves_allocate_nothing() {
             let composed = solver3.solve(&robot3, everything);
             let parameter = Request::new(q2, Model::Rigid).parameter_jacobian(&mut parameters);
             let by_parameter = solver2.solve(&robot2, parameter);
+            // both Jacobians from one pass, through the kinks
+            let both = Request::new(q3, Model::Torsion)
+                .effects(&kinks)
+                .jacobians(&mut jac3, &mut parameters3);
+            let by_both = solver3.solve(&robot3, both);
             let compliant = Request::new(q2, Model::Torsion)
                 .effects(&none)
                 .compliance(&mut compliance);
@@ -121,13 +127,16 @@ fn solves_allocate_nothing() {
             let request = Request::new(q2, Model::Torsion);
             let softest = solver2.softest_mode_gradient(&robot2, request, two.as_ref().unwrap());
             checksum += softest.unwrap().rotation[0];
-            for sol in [warm, cold, rigid, traced, jacobian, composed, weighed] {
+            for sol in [
+                warm, cold, rigid, traced, jacobian, composed, weighed, by_both,
+            ] {
                 checksum += sol.unwrap().tip.position.x;
             }
             for sol in [two, by_parameter, by_load, friction] {
                 checksum += sol.unwrap().tip.orientation().w;
             }
             checksum += jac.feed[2][0] + jac2.rotation[0][1] + parameters.curvature[1][0];
+            checksum += jac3.rotation[2][0] + parameters3.bending_stiffness[2][1];
             checksum += compliance[(0, 0)];
         }
         for q in &q_f32 {

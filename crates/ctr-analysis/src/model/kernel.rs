@@ -201,6 +201,23 @@ impl<const N: usize> Kernel<N> {
         )
     }
 
+    /// [`solve`](Self::solve) without a tip force, with the joint and the parameter
+    /// Jacobians of the measured tip written into `joints` and `parameters`, from one
+    /// derivative pass where the core can (see
+    /// [`jacobian`](Self::jacobian) and [`parameter_jacobian`](Self::parameter_jacobian)).
+    pub fn jacobians(
+        &self,
+        solver: &mut Solver<f64, N>,
+        q: Joints<f64, N>,
+        joints: &mut JointJacobian<f64, N>,
+        parameters: &mut ParameterJacobian<f64, N>,
+    ) -> Result<Solution<f64, N>, SolveError> {
+        solver.solve(
+            &self.robot,
+            self.request(q, [0.0; 3]).jacobians(joints, parameters),
+        )
+    }
+
     /// [`solve`](Self::solve) without a tip force, with the parameter Jacobian of the
     /// measured tip written into `jacobian` (the core's analytic one, at the scales of
     /// this kernel's robot; under gravity the core has none: [`SolveError::Unsupported`]).
@@ -306,16 +323,33 @@ impl Bound<'_> {
         actual: &[f64],
         columns: &mut Vec<[f64; 6]>,
     ) -> Result<FkResult, SolveError> {
-        let per_degree = 1f64.to_radians();
         each_count!(self, |k, s| {
             let q = joints_of(actual);
             let mut jac = JointJacobian::nan();
             k.jacobian(s, q, &mut jac).map(|sol| {
-                columns.clear();
-                for (feed, rotation) in jac.feed.iter().zip(&jac.rotation) {
-                    columns.push(core::array::from_fn(|a| feed[a]));
-                    columns.push(core::array::from_fn(|a| rotation[a] * per_degree));
-                }
+                joint_columns(&jac, columns);
+                FkResult::from_solution(&sol, f64::NAN)
+            })
+        })
+    }
+
+    /// [`fk_jacobian`](Self::fk_jacobian) and [`fk_scales`](Self::fk_scales) at once
+    /// (one derivative pass where the core can: up to three tubes).
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count.
+    pub fn fk_jacobians(
+        &mut self,
+        actual: &[f64],
+        joints: &mut Vec<[f64; 6]>,
+        scales: &mut Vec<[f64; 6]>,
+    ) -> Result<FkResult, SolveError> {
+        each_count!(self, |k, s| {
+            let q = joints_of(actual);
+            let (mut jac, mut par) = (JointJacobian::nan(), ParameterJacobian::nan());
+            k.jacobians(s, q, &mut jac, &mut par).map(|sol| {
+                joint_columns(&jac, joints);
+                scale_columns(&par, scales);
                 FkResult::from_solution(&sol, f64::NAN)
             })
         })
@@ -341,15 +375,7 @@ impl Bound<'_> {
             let q = joints_of(actual);
             let mut jac = ParameterJacobian::nan();
             k.parameter_jacobian(s, q, &mut jac).map(|sol| {
-                columns.clear();
-                for (bending, torsional) in
-                    jac.bending_stiffness.iter().zip(&jac.torsional_stiffness)
-                {
-                    columns.push(core::array::from_fn(|a| bending[a] + torsional[a]));
-                }
-                for curvature in &jac.curvature {
-                    columns.push(core::array::from_fn(|a| curvature[a]));
-                }
+                scale_columns(&jac, columns);
                 FkResult::from_solution(&sol, f64::NAN)
             })
         })
@@ -391,6 +417,30 @@ impl Bound<'_> {
     /// Forgets the warm-start memory.
     pub fn reset(&mut self) {
         each_count!(self, |_k, s| s.reset())
+    }
+}
+
+/// The joint Jacobian's columns in file order and units into `columns`: per tube the
+/// feed's (per mm), then the rotation's (per degree).
+fn joint_columns<const N: usize>(jac: &JointJacobian<f64, N>, columns: &mut Vec<[f64; 6]>) {
+    let per_degree = 1f64.to_radians();
+    columns.clear();
+    for (feed, rotation) in jac.feed.iter().zip(&jac.rotation) {
+        columns.push(core::array::from_fn(|a| feed[a]));
+        columns.push(core::array::from_fn(|a| rotation[a] * per_degree));
+    }
+}
+
+/// The parameter Jacobian's columns of the `stiffness` and `precurvature` effects into
+/// `columns`: per tube the stiffness scale's (E I and G J together), then per tube the
+/// curvature scale's.
+fn scale_columns<const N: usize>(jac: &ParameterJacobian<f64, N>, columns: &mut Vec<[f64; 6]>) {
+    columns.clear();
+    for (bending, torsional) in jac.bending_stiffness.iter().zip(&jac.torsional_stiffness) {
+        columns.push(core::array::from_fn(|a| bending[a] + torsional[a]));
+    }
+    for curvature in &jac.curvature {
+        columns.push(core::array::from_fn(|a| curvature[a]));
     }
 }
 

@@ -598,6 +598,34 @@ impl RowSolver<'_> {
         self.bound.fk_jacobian(actual, columns)
     }
 
+    /// [`fk_jacobian`](Self::fk_jacobian) and [`fk_scales`](Self::fk_scales) at once:
+    /// the joint columns into `joints`, the scale columns into `scales`, from one
+    /// derivative pass where the core can (up to three tubes).
+    ///
+    /// ```
+    /// use ctr_analysis::model::ModelSpec;
+    /// use ctr_formats::AnyRobot;
+    /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
+    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
+    /// let (mut joints, mut scales, mut alone) = (Vec::new(), Vec::new(), Vec::new());
+    /// rows.solver().fk_jacobians(&[50.0, 10.0], &mut joints, &mut scales)?;
+    /// rows.solver().fk_scales(&[50.0, 10.0], &mut alone)?;
+    /// assert_eq!((joints.len(), scales.len()), (2, 2));
+    /// assert!((0..6).all(|a| (scales[1][a] - alone[1][a]).abs() < 1e-12));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Panics
+    /// If `actual.len() != 2 * n_tubes`.
+    pub fn fk_jacobians(
+        &mut self,
+        actual: &[f64],
+        joints: &mut Vec<[f64; 6]>,
+        scales: &mut Vec<[f64; 6]>,
+    ) -> Result<FkResult, SolveError> {
+        self.bound.fk_jacobians(actual, joints, scales)
+    }
+
     /// The tip of actual joints `actual` (file order and units; joint offsets and time
     /// effects applied) without a tip force, with its derivatives in each tube's
     /// stiffness scale and then each tube's curvature scale at this model's robot

@@ -52,7 +52,7 @@ use crate::integrate::pass::{run, Setup};
 use crate::integrate::pose::Tangents;
 use crate::integrate::twist::{Inputs, TwistState};
 use crate::math::dual::{Dual, Num};
-use crate::math::linalg::solve_linear;
+use crate::math::linalg::{solve_linear, V3};
 use crate::real::{c, Real};
 use crate::solve::Model;
 use nalgebra::Vector6;
@@ -62,8 +62,9 @@ fn nan<T: Real>() -> T {
     c(f64::NAN)
 }
 
-/// Most columns of a Jacobian: three parameters per tube (see [`ParameterJacobian`]).
-const MAX_COLUMNS: usize = 3 * crate::MAX_TUBES;
+/// Most columns of one derivative pass: two joints and three parameters per tube (see
+/// [`JointJacobian`], [`ParameterJacobian`]).
+const MAX_COLUMNS: usize = 5 * crate::MAX_TUBES;
 
 /// d(tip pose)/d(joints) at a solution: one 6-vector column per joint.
 ///
@@ -171,6 +172,15 @@ pub struct ParameterJacobian<T: Real, const N: usize> {
 }
 
 impl<T: Real, const N: usize> ParameterJacobian<T, N> {
+    /// Every column: the bending stiffness's, the torsional stiffness's, then the
+    /// curvature's, tube 1 first.
+    pub(crate) fn columns_mut(&mut self) -> impl Iterator<Item = &mut Vector6<T>> {
+        self.bending_stiffness
+            .iter_mut()
+            .chain(self.torsional_stiffness.iter_mut())
+            .chain(self.curvature.iter_mut())
+    }
+
     /// Every entry NaN (see [`JointJacobian::nan`]).
     ///
     /// ```
@@ -194,6 +204,8 @@ enum Wrt {
     Joints,
     /// bending stiffness scales, torsional stiffness scales, curvature scales
     Parameters,
+    /// the joints' directions, then the parameters'
+    Both,
 }
 
 /// A dual number with derivative `d` in direction `i` (and value `v`).
@@ -292,16 +304,41 @@ fn pass<T: Real, const N: usize, const K: usize>(
             let tangent = pass.frame.columns();
             let mut cols =
                 implicit_columns::<T, N, K>(&residuals(&pass.tips), &tangent, m, 2 * N - 1);
-            // Turning every tube by the same angle turns the whole robot about W's z
-            // axis (the model is exactly invariant, kinks and friction moments included:
-            // they depend on relative angles), so the rotation columns sum to
-            // (e_z x p, e_z): the last one follows from the others.
-            let p = pass.frame.p;
-            let mut last = Vector6::new(-p[1], p[0], T::zero(), T::zero(), T::zero(), T::one());
-            for i in 0..N - 1 {
-                last -= cols[N + i];
+            last_rotation::<T, N>(&mut cols, &pass.frame.p);
+            return cols;
+        }
+        Wrt::Both => {
+            let mut inp = Inputs {
+                s: dual(&plain.s),
+                theta: dual(&plain.theta),
+                x: dual(&plain.x),
+                ei: dual(&plain.ei),
+                gj: dual(&plain.gj),
+                k: dual(&plain.k),
+            };
+            seed_x(&mut inp.x);
+            for i in 0..N {
+                inp.s[i] = Dual::var(plain.s[i], m + i);
             }
-            cols[2 * N - 1] = last;
+            for i in 0..N - 1 {
+                inp.theta[i] = Dual::var(plain.theta[i], m + N + i);
+            }
+            // the parameters after the joints' 2 N - 1 directions
+            let at = m + 2 * N - 1;
+            for i in 0..N {
+                inp.ei[i] = seeded(plain.ei[i], at + i, plain.ei[i]);
+                inp.gj[i] = seeded(plain.gj[i], at + N + i, plain.gj[i]);
+                inp.k[i] = seeded(plain.k[i], at + 2 * N + i, plain.k[i]);
+            }
+            let pass = run::<T, _, _, TwistState<_, N>, _, N>(setup, &inp, Tangents::identity());
+            let tangent = pass.frame.columns();
+            let found = implicit_columns::<T, N, K>(&residuals(&pass.tips), &tangent, m, 5 * N - 1);
+            // the joints' 2 N columns (the last rotation from the others), then the
+            // parameters' 3 N
+            let mut cols = [Vector6::from_element(nan::<T>()); MAX_COLUMNS];
+            cols[..2 * N - 1].copy_from_slice(&found[..2 * N - 1]);
+            last_rotation::<T, N>(&mut cols, &pass.frame.p);
+            cols[2 * N..5 * N].copy_from_slice(&found[2 * N - 1..5 * N - 1]);
             return cols;
         }
         Wrt::Parameters => {
@@ -327,8 +364,21 @@ fn pass<T: Real, const N: usize, const K: usize>(
     implicit_columns::<T, N, K>(&out.0, &out.1, m, 3 * N)
 }
 
+/// Completes the joint columns `cols` (feeds, then `N - 1` rotations) with the last
+/// rotation's, the tip at `p`. Turning every tube by the same angle turns the whole
+/// robot about W's z axis (the model is exactly invariant, kinks and friction moments
+/// included: they depend on relative angles), so the rotation columns sum to
+/// `(e_z x p, e_z)`: the last one follows from the others.
+fn last_rotation<T: Real, const N: usize>(cols: &mut [Vector6<T>; MAX_COLUMNS], p: &V3<T>) {
+    let mut last = Vector6::new(-p[1], p[0], T::zero(), T::zero(), T::zero(), T::one());
+    for i in 0..N - 1 {
+        last -= cols[N + i];
+    }
+    cols[2 * N - 1] = last;
+}
+
 /// Runs [`pass`] with the fewest directions `K` that hold `m + columns` (`N` is a
-/// constant, so only one arm survives optimisation).
+/// constant, so only one arm survives optimisation); NaN columns where none does.
 fn dispatch<T: Real, const N: usize>(
     setup: &Setup<'_, T, N>,
     x: &[T; N],
@@ -338,6 +388,7 @@ fn dispatch<T: Real, const N: usize>(
     let columns = match wrt {
         Wrt::Joints => 2 * N - 1,
         Wrt::Parameters => 3 * N,
+        Wrt::Both => 5 * N - 1,
     };
     let needed = (N - 1) + columns;
     macro_rules! run {
@@ -347,7 +398,7 @@ fn dispatch<T: Real, const N: usize>(
             })*
         };
     }
-    run!(1, 3, 4, 7, 10, 11, 15);
+    run!(1, 3, 4, 7, 10, 11, 15, 16);
     [Vector6::from_element(nan::<T>()); MAX_COLUMNS]
 }
 
@@ -372,6 +423,36 @@ pub(crate) fn joints<T: Real, const N: usize>(
     }
 }
 
+/// The [`JointJacobian`] and the [`ParameterJacobian`] of the tip of `setup` at the
+/// solution with base twists `x`: one pass where its directions fit [`dispatch`]'s
+/// widths (up to three tubes), else each alone.
+pub(crate) fn both<T: Real, const N: usize>(
+    setup: &Setup<'_, T, N>,
+    x: &[T; N],
+    model: Model,
+    joint: &mut JointJacobian<T, N>,
+    parameter: &mut ParameterJacobian<T, N>,
+) {
+    // dispatch's count of directions
+    if (N - 1) + 5 * N - 1 > WIDEST {
+        joints(setup, x, model, joint);
+        parameters(setup, x, model, parameter);
+        return;
+    }
+    let cols = dispatch(setup, x, model, Wrt::Both);
+    let targets = joint
+        .feed
+        .iter_mut()
+        .chain(joint.rotation.iter_mut())
+        .chain(parameter.columns_mut());
+    for (d, s) in targets.zip(cols.iter()) {
+        *d = *s;
+    }
+}
+
+/// The widest derivative pass [`dispatch`] runs, in directions.
+const WIDEST: usize = 16;
+
 /// The [`ParameterJacobian`] of the tip of `setup` at the solution with base twists `x`.
 pub(crate) fn parameters<T: Real, const N: usize>(
     setup: &Setup<'_, T, N>,
@@ -380,12 +461,7 @@ pub(crate) fn parameters<T: Real, const N: usize>(
     jac: &mut ParameterJacobian<T, N>,
 ) {
     let cols = dispatch(setup, x, model, Wrt::Parameters);
-    let targets = jac
-        .bending_stiffness
-        .iter_mut()
-        .chain(jac.torsional_stiffness.iter_mut())
-        .chain(jac.curvature.iter_mut());
-    for (d, s) in targets.zip(cols.iter()) {
+    for (d, s) in jac.columns_mut().zip(cols.iter()) {
         *d = *s;
     }
 }

@@ -313,11 +313,12 @@ impl<T: Real, const N: usize> Solver<T, N> {
                     .iter_mut()
                     .chain(j.rotation.iter_mut())
                     .for_each(measure),
-                Some(Derivative::Parameters(j)) => j
-                    .bending_stiffness
+                Some(Derivative::Parameters(j)) => j.columns_mut().for_each(measure),
+                Some(Derivative::JointsAndParameters(j, p)) => j
+                    .feed
                     .iter_mut()
-                    .chain(j.torsional_stiffness.iter_mut())
-                    .chain(j.curvature.iter_mut())
+                    .chain(j.rotation.iter_mut())
+                    .chain(p.columns_mut())
                     .for_each(measure),
                 Some(Derivative::Loads(m)) => {
                     for k in 0..6 {

@@ -13,7 +13,7 @@
 //! | effects: offsets, sensor offset, registration | yes | yes | yes |
 //! | clearance kinks | yes | yes | no |
 //! | boundary friction moments | no | yes | no |
-//! | joint or parameter Jacobian | yes | yes (with kinks, friction) | no |
+//! | joint or parameter Jacobian, or both | yes | yes (with kinks, friction) | no |
 //! | compliance ([`Request::compliance`]) | no | yes (at zero load) | yes |
 //! | softest mode's gradient ([`Solver::softest_mode_gradient`](crate::Solver::softest_mode_gradient)) | yes (constant) | yes (no friction moments) | no |
 //! | backbone points | yes | yes | yes |
@@ -35,6 +35,9 @@ pub enum Derivative<'a, T: Real, const N: usize> {
     Joints(&'a mut JointJacobian<T, N>),
     /// d(tip)/d(each tube's stiffness and precurvature scale factors).
     Parameters(&'a mut ParameterJacobian<T, N>),
+    /// Both at once: one derivative pass carries the joints and the parameters (where
+    /// the tube count allows, else two passes), the same numbers as each alone.
+    JointsAndParameters(&'a mut JointJacobian<T, N>, &'a mut ParameterJacobian<T, N>),
     /// The tip's compliance: the 6 x 6 derivative of `(p_tip, rotation)` with respect
     /// to `(F_tip, M_tip)`. Rows: tip displacement (mm), then the tip frame's rotation as
     /// a spatial angle vector (rad, `[dphi]x = dR R^T`), as measured; columns: tip force
@@ -121,6 +124,28 @@ impl<'a, T: Real, const N: usize> Request<'a, T, N> {
     /// Writing the parameter Jacobian of the tip into `jacobian`.
     pub fn parameter_jacobian(mut self, jacobian: &'a mut ParameterJacobian<T, N>) -> Self {
         self.derivative = Some(Derivative::Parameters(jacobian));
+        self
+    }
+    /// Writing the joint Jacobian of the tip into `joints` and its parameter Jacobian
+    /// into `parameters`, from one derivative pass where the tube count allows (up to
+    /// three tubes; four take two passes).
+    ///
+    /// ```
+    /// use ctr_core::{JointJacobian, Joints, Model, ParameterJacobian, Request, Robot, Solver, TubeParams};
+    /// let robot = Robot::new([TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) }]).unwrap();
+    /// let q = Joints::new([50.0], [0.3]);
+    /// let (mut j, mut p) = (JointJacobian::nan(), ParameterJacobian::nan());
+    /// Solver::default().solve(&robot, Request::new(q, Model::Torsion).jacobians(&mut j, &mut p)).unwrap();
+    /// let mut alone = ParameterJacobian::nan();
+    /// Solver::default().solve(&robot, Request::new(q, Model::Torsion).parameter_jacobian(&mut alone)).unwrap();
+    /// assert!((p.curvature[0] - alone.curvature[0]).norm() < 1e-12);
+    /// ```
+    pub fn jacobians(
+        mut self,
+        joints: &'a mut JointJacobian<T, N>,
+        parameters: &'a mut ParameterJacobian<T, N>,
+    ) -> Self {
+        self.derivative = Some(Derivative::JointsAndParameters(joints, parameters));
         self
     }
     /// Writing the tip's compliance into `compliance` (see [`Derivative::Loads`]): the
@@ -243,7 +268,11 @@ impl<T: Real, const N: usize> Request<'_, T, N> {
         } else if loaded
             && matches!(
                 self.derivative,
-                Some(Derivative::Joints(_) | Derivative::Parameters(_))
+                Some(
+                    Derivative::Joints(_)
+                        | Derivative::Parameters(_)
+                        | Derivative::JointsAndParameters(..)
+                )
             )
         {
             Some(Unsupported::JacobianWithLoads)

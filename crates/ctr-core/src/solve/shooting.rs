@@ -213,6 +213,9 @@ impl<T: Real, const N: usize> Solver<T, N> {
             Some(Derivative::Parameters(j)) => {
                 jacobian::parameters(&setup, &sol.base_twist_per_mm, request.model, j)
             }
+            Some(Derivative::JointsAndParameters(j, p)) => {
+                jacobian::both(&setup, &sol.base_twist_per_mm, request.model, j, p)
+            }
             // the loaded solver answers a compliance
             Some(Derivative::Loads(_)) | None => {}
         }
