@@ -5,9 +5,10 @@
 //! predictions per parameter), and under gravity each prediction is a loaded solve.
 //! Fitting every candidate that way in every round is what made a diagnosis slow when
 //! the cause lies outside the vocabulary (every round fits every candidate). The screen
-//! fits each candidate (from each of its starts) with only its own parameters free, the
-//! effects found so far held at their values, on a sample of at most [`SCREEN_ROWS`]
-//! evenly spread fit rows. A held screen cannot see a candidate that only pays once a
+//! fits each candidate with only its own parameters free, the effects found so far held
+//! at their values, on a sample of at most [`SCREEN_ROWS`] evenly spread fit rows (a
+//! candidate with several starts fits each on a coarser sample first, [`COARSE_ROWS`],
+//! and goes on from the best). A held screen cannot see a candidate that only pays once a
 //! held effect moves with it (a stiffness beside the precurvature found first: the
 //! kinematics pin their ratio), so each is ranked by its projected cost: the screened
 //! cost less the Gauss-Newton decrease `g^T H^-1 g` of the held effects' parameters and
