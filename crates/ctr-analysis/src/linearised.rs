@@ -40,7 +40,7 @@
 //! in the measurement): the diagnosis's fits take these columns of their Jacobian
 //! from here instead of two solves of every row per parameter.
 
-use crate::model::{ModelSpec, RowModel, RowSolver};
+use crate::model::{Kept, ModelSpec, RowModel, RowSolver};
 use crate::simulate::{row_error, shifted_joints, Prediction, SimError};
 use crate::timeline::TimeEffects;
 use ctr_core::{Frame, SolveError};
@@ -222,24 +222,45 @@ impl Linearised {
         if moving.scales() {
             out.scales = vec![[0.0; 6]; n * width];
         }
-        let parts = ctr_formats::parallel::map(&out.runs, threads.max(1), |&run| {
+        let threads = threads.max(1);
+        // the runs solved in order, warm, each on a thread; then each row's derivatives
+        // at its solution, on every thread (a run's chain cannot be split, its
+        // derivatives can: the same numbers as within the solve)
+        let parts = ctr_formats::parallel::map(&out.runs, threads, |&run| {
             run_linearised(&row_model, rec, run, &out.solved, loaded, moving)
         });
+        let mut rows = Vec::new();
         for part in parts {
             let Some(part) = part? else {
                 return Ok(None);
             };
-            for row in part {
-                let at = row.row * width..(row.row + 1) * width;
-                out.actual[at.clone()].copy_from_slice(&row.actual);
-                if moving.joints() {
-                    out.jacobian[at.clone()].copy_from_slice(&row.joints);
-                }
-                if moving.scales() {
-                    out.scales[at].copy_from_slice(&row.scales);
-                }
-                out.tip[row.row] = row.tip;
+            rows.extend(part);
+        }
+        if !loaded && moving != Moving::Measurement {
+            let done = ctr_formats::parallel::map_rows(
+                rows.len(),
+                DERIVATIVE_ROWS,
+                threads,
+                || row_model.solver(),
+                |solver, i| derivatives(solver, &rows[i], moving),
+            );
+            for (row, columns) in rows.iter_mut().zip(done) {
+                let Some((joints, scales)) = columns else {
+                    return Ok(None);
+                };
+                (row.joints, row.scales) = (joints, scales);
             }
+        }
+        for row in rows {
+            let at = row.row * width..(row.row + 1) * width;
+            out.actual[at.clone()].copy_from_slice(&row.actual);
+            if moving.joints() {
+                out.jacobian[at.clone()].copy_from_slice(&row.joints);
+            }
+            if moving.scales() {
+                out.scales[at].copy_from_slice(&row.scales);
+            }
+            out.tip[row.row] = row.tip;
         }
         Ok(Some(out))
     }
@@ -482,19 +503,28 @@ fn probed(
     Ok(tip)
 }
 
-/// A linearised row: its index, actual joints, unmeasured tip, and its columns in the
-/// joints and in the scales (empty where they do not move).
+/// A linearised row: its index, actual joints, unmeasured tip, the core's solution
+/// there (where its derivatives come later), and its columns in the joints and in the
+/// scales (empty where they do not move).
 struct RowLinearised {
     row: usize,
     actual: Vec<f64>,
     tip: Frame<f64>,
+    kept: Option<Kept>,
     joints: Vec<[f64; 6]>,
     scales: Vec<[f64; 6]>,
 }
 
-/// The rows `solved` of run `run` solved along it with the columns `moving` asks for
-/// (the joints' probed where `loaded`); `Ok(None)` where the core has no Jacobian for
-/// them.
+/// Derivative columns of a row, `(dp, omega)` each.
+type Columns = Vec<[f64; 6]>;
+
+/// Rows of one job of [`Linearised::moving`]'s derivatives.
+const DERIVATIVE_ROWS: usize = 16;
+
+/// The rows `solved` of run `run` solved along it, warm, as a simulation does: their
+/// solutions kept for their analytic derivatives, or under a load (`loaded`) the joint
+/// columns probed here where `moving` moves the joints; `Ok(None)` where the core has
+/// no Jacobian for them.
 fn run_linearised(
     row_model: &RowModel,
     rec: &Recording,
@@ -506,7 +536,7 @@ fn run_linearised(
     let range = rec.runs[run].rows.clone();
     let shifted = shifted_joints(row_model, rec, run);
     let mut solver = row_model.solver();
-    let (mut joints, mut scales) = (Vec::new(), Vec::new());
+    let mut joints = Vec::new();
     let mut out = Vec::new();
     for (k, row) in range.enumerate() {
         if !solved[row] {
@@ -514,15 +544,15 @@ fn run_linearised(
         }
         let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
         let force = rec.rows[row].force_n;
-        let solve = match moving {
-            Moving::Measurement => solver.fk_actual(a, force),
-            Moving::Joints if loaded => probed(&mut solver, a, force, &mut joints),
-            Moving::Joints => solver.fk_jacobian(a, &mut joints),
-            Moving::Scales => solver.fk_scales(a, &mut scales),
-            Moving::Both => solver.fk_jacobians(a, &mut joints, &mut scales),
+        let solve = if loaded && moving.joints() {
+            probed(&mut solver, a, force, &mut joints).map(|tip| (tip, None))
+        } else {
+            solver
+                .fk_kept(a, force)
+                .map(|(tip, kept)| (tip, Some(kept)))
         };
-        let tip = match solve {
-            Ok(tip) => tip,
+        let (tip, kept) = match solve {
+            Ok(solved) => solved,
             Err(SolveError::Unsupported(_)) => return Ok(None),
             Err(error) => return Err(row_error(row, error)),
         };
@@ -530,11 +560,31 @@ fn run_linearised(
             row,
             actual: a.to_vec(),
             tip: frame_of(tip.position, tip.quaternion),
+            kept,
             joints: joints.clone(),
-            scales: scales.clone(),
+            scales: Vec::new(),
         });
     }
     Ok(Some(out))
+}
+
+/// The joint and scale columns `moving` asks for of a row solved along its run, at its
+/// kept solution (`solver`: any of the model's); `None` where the core has none.
+fn derivatives(
+    solver: &mut RowSolver,
+    row: &RowLinearised,
+    moving: Moving,
+) -> Option<(Columns, Columns)> {
+    let (mut joints, mut scales) = (Vec::new(), Vec::new());
+    solver
+        .derivatives_at(
+            &row.actual,
+            row.kept.as_ref()?,
+            moving.joints().then_some(&mut joints),
+            moving.scales().then_some(&mut scales),
+        )
+        .ok()?;
+    Some((joints, scales))
 }
 
 /// The frame of a position and a unit quaternion `w, x, y, z`.

@@ -554,3 +554,84 @@ fn joint_and_parameter_jacobians_at_once_are_each_alone() {
         );
     }
 }
+
+/// The derivatives at a solution found before ([`Solver::derivative_at`]) against
+/// asking for them in the solve: the same numbers, bit for bit (joint, parameter and
+/// both), through joint offsets, clearance kinks and a registration; a sensor offset,
+/// whose lever arm needs the tip before the measurement, is refused.
+fn at_a_solution<const N: usize>(name: &str, model: Model, seed: u64) {
+    use ctr_core::effects::ClearanceProfile;
+    let robot: Robot<f64, N> = robot::<N>(name);
+    let mut effects = static_effects::<N>();
+    effects.sensor_offset_mm = [0.0; 3];
+    effects.clearance[0] = Some(ClearanceProfile::Cosine {
+        max_deflection_rad: 0.04,
+        peak_rad: 205f64.to_radians(),
+    });
+    let mut rng = Rng(seed);
+    let mut chain = Solver::<f64, N>::default();
+    for _ in 0..CONFIGS {
+        let q = random_joints::<N>(name, &mut rng);
+        let request = || Request::new(q, model).effects(&effects);
+        // the solver as it found the row: each derivative asked in a solve from it
+        let state = chain;
+        let plain = chain.solve(&robot, request()).unwrap();
+        let other = Solver::<f64, N>::default();
+        let nan = || {
+            (
+                ctr_core::JointJacobian::<f64, N>::nan(),
+                ctr_core::ParameterJacobian::<f64, N>::nan(),
+            )
+        };
+        let ((mut j, mut p), (mut j1, mut p1)) = (nan(), nan());
+        let mut asked = state;
+        let within = asked
+            .solve(&robot, request().jacobians(&mut j, &mut p))
+            .unwrap();
+        assert_eq!(within.tip, plain.tip, "{name} {model:?}: the same solve");
+        other
+            .derivative_at(&robot, request().jacobians(&mut j1, &mut p1), &plain)
+            .unwrap();
+        assert_eq!((j1, p1), (j, p), "{name} {model:?} at {q:?}: both");
+        let ((mut j, mut p), (mut j1, mut p1)) = (nan(), nan());
+        asked = state;
+        asked
+            .solve(&robot, request().joint_jacobian(&mut j))
+            .unwrap();
+        other
+            .derivative_at(&robot, request().joint_jacobian(&mut j1), &plain)
+            .unwrap();
+        assert_eq!(j1, j, "{name} {model:?} at {q:?}: the joints");
+        asked = state;
+        asked
+            .solve(&robot, request().parameter_jacobian(&mut p))
+            .unwrap();
+        other
+            .derivative_at(&robot, request().parameter_jacobian(&mut p1), &plain)
+            .unwrap();
+        assert_eq!(p1, p, "{name} {model:?} at {q:?}: the parameters");
+    }
+    let mut offset = effects;
+    offset.sensor_offset_mm = [0.0, 0.0, 2.0];
+    let q = random_joints::<N>(name, &mut rng);
+    let sol = chain
+        .solve(&robot, Request::new(q, model).effects(&offset))
+        .unwrap();
+    let mut j = ctr_core::JointJacobian::nan();
+    let refused = chain.derivative_at(
+        &robot,
+        Request::new(q, model)
+            .effects(&offset)
+            .joint_jacobian(&mut j),
+        &sol,
+    );
+    assert!(refused.is_err(), "a sensor offset");
+}
+
+#[test]
+fn derivatives_at_a_solution_are_those_of_the_solve() {
+    for model in [Model::Torsion, Model::Rigid] {
+        at_a_solution::<2>("liu2023", model, 0x0BAD_CAFE_1234_5678);
+        at_a_solution::<3>("nitinol3", model, 0x0DEA_DBEE_F123_4567);
+    }
+}

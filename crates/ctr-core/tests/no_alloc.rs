@@ -82,6 +82,7 @@ fn solves_allocate_nothing() {
     let mut jac2 = JointJacobian::nan();
     let mut parameters = ParameterJacobian::nan();
     let (mut jac3, mut parameters3) = (JointJacobian::nan(), ParameterJacobian::nan());
+    let (mut jac4, mut parameters4) = (JointJacobian::nan(), ParameterJacobian::nan());
     let mut compliance = Matrix6::zeros();
     let none = Effects::default();
     let n = allocations_during(|| {
@@ -127,6 +128,12 @@ fn solves_allocate_nothing() {
             let request = Request::new(q2, Model::Torsion);
             let softest = solver2.softest_mode_gradient(&robot2, request, two.as_ref().unwrap());
             checksum += softest.unwrap().rotation[0];
+            // both Jacobians at the warm solution, without solving again
+            let later = Request::new(q3, Model::Torsion).jacobians(&mut jac4, &mut parameters4);
+            solver3
+                .derivative_at(&robot3, later, warm.as_ref().unwrap())
+                .unwrap();
+            checksum += jac4.feed[1][2] + parameters4.curvature[2][0];
             for sol in [
                 warm, cold, rigid, traced, jacobian, composed, weighed, by_both,
             ] {

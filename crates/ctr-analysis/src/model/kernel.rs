@@ -218,6 +218,28 @@ impl<const N: usize> Kernel<N> {
         )
     }
 
+    /// The joint Jacobian (into `joints`) and the parameter Jacobian (into `parameters`)
+    /// asked for, of the measured tip at `sol`, a solution of [`solve`](Self::solve)
+    /// at `q` without a tip force: the same numbers as asking in the solve, without
+    /// solving again (the core's `Solver::derivative_at`; not with a sensor offset).
+    pub fn derivatives_at(
+        &self,
+        solver: &Solver<f64, N>,
+        q: Joints<f64, N>,
+        sol: &Solution<f64, N>,
+        joints: Option<&mut JointJacobian<f64, N>>,
+        parameters: Option<&mut ParameterJacobian<f64, N>>,
+    ) -> Result<(), SolveError> {
+        let request = self.request(q, [0.0; 3]);
+        let request = match (joints, parameters) {
+            (Some(j), Some(p)) => request.jacobians(j, p),
+            (Some(j), None) => request.joint_jacobian(j),
+            (None, Some(p)) => request.parameter_jacobian(p),
+            (None, None) => return Ok(()),
+        };
+        solver.derivative_at(&self.robot, request, sol)
+    }
+
     /// [`solve`](Self::solve) without a tip force, with the parameter Jacobian of the
     /// measured tip written into `jacobian` (the core's analytic one, at the scales of
     /// this kernel's robot; under gravity the core has none: [`SolveError::Unsupported`]).
@@ -274,6 +296,19 @@ pub(crate) enum Bound<'k> {
     Two(&'k Kernel<2>, Solver<f64, 2>),
     Three(&'k Kernel<3>, Solver<f64, 3>),
     Four(&'k Kernel<4>, Solver<f64, 4>),
+}
+
+/// A row's core solution, kept by [`Bound::fk_kept`] for its derivatives later.
+#[derive(Clone, Copy, Debug)]
+pub enum Kept {
+    /// A one-tube robot's.
+    One(Solution<f64, 1>),
+    /// A two-tube robot's.
+    Two(Solution<f64, 2>),
+    /// A three-tube robot's.
+    Three(Solution<f64, 3>),
+    /// A four-tube robot's.
+    Four(Solution<f64, 4>),
 }
 
 /// `body` with `k` (the kernel) and `s` (the solver) of whichever tube count `bound` has.
@@ -353,6 +388,73 @@ impl Bound<'_> {
                 FkResult::from_solution(&sol, f64::NAN)
             })
         })
+    }
+
+    /// [`fk`](Self::fk) without a stability margin, with the core's solution kept for
+    /// [`derivatives_at`](Self::derivatives_at).
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count.
+    pub fn fk_kept(
+        &mut self,
+        actual: &[f64],
+        force_n: [f64; 3],
+    ) -> Result<(FkResult, Kept), SolveError> {
+        macro_rules! kept {
+            ($k:expr, $s:expr, $variant:ident) => {
+                $k.solve($s, joints_of(actual), force_n)
+                    .map(|sol| (FkResult::from_solution(&sol, f64::NAN), Kept::$variant(sol)))
+            };
+        }
+        match self {
+            Bound::One(k, s) => kept!(k, s, One),
+            Bound::Two(k, s) => kept!(k, s, Two),
+            Bound::Three(k, s) => kept!(k, s, Three),
+            Bound::Four(k, s) => kept!(k, s, Four),
+        }
+    }
+
+    /// The joint columns (into `joints`, as [`fk_jacobian`](Self::fk_jacobian)'s) and
+    /// the scale columns (into `scales`, as [`fk_scales`](Self::fk_scales)'s) asked for,
+    /// at `kept`, the row `actual` solved by [`fk_kept`](Self::fk_kept) without a tip
+    /// force by a solver of this model (any, warm or not: nothing is solved again).
+    ///
+    /// # Panics
+    /// If `actual.len()` is not twice the tube count, or `kept` is of another tube count.
+    pub fn derivatives_at(
+        &self,
+        actual: &[f64],
+        kept: &Kept,
+        joints: Option<&mut Vec<[f64; 6]>>,
+        scales: Option<&mut Vec<[f64; 6]>>,
+    ) -> Result<(), SolveError> {
+        macro_rules! at {
+            ($k:expr, $s:expr, $sol:expr) => {{
+                let (mut jac, mut par) = (JointJacobian::nan(), ParameterJacobian::nan());
+                let (j, p) = (joints.is_some(), scales.is_some());
+                $k.derivatives_at(
+                    $s,
+                    joints_of(actual),
+                    $sol,
+                    j.then_some(&mut jac),
+                    p.then_some(&mut par),
+                )?;
+                if let Some(columns) = joints {
+                    joint_columns(&jac, columns);
+                }
+                if let Some(columns) = scales {
+                    scale_columns(&par, columns);
+                }
+                Ok(())
+            }};
+        }
+        match (self, kept) {
+            (Bound::One(k, s), Kept::One(sol)) => at!(k, s, sol),
+            (Bound::Two(k, s), Kept::Two(sol)) => at!(k, s, sol),
+            (Bound::Three(k, s), Kept::Three(sol)) => at!(k, s, sol),
+            (Bound::Four(k, s), Kept::Four(sol)) => at!(k, s, sol),
+            _ => panic!("a row kept by a solver of another tube count"),
+        }
     }
 
     /// [`fk`](Self::fk) of a row without a tip force, with the derivatives of the tip as

@@ -32,9 +32,11 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod derivatives;
 mod kernel;
 mod tip;
 
+pub use kernel::Kept;
 pub(crate) use kernel::{AnyKernel, Bound, Kernel};
 pub(crate) use tip::{
     file_jacobian, log_so3, tip_jacobian, CoreFk, Jacobian, Solved, TipFk, MAX_JOINTS,
@@ -567,93 +569,6 @@ impl RowSolver<'_> {
     /// If `actual.len() != 2 * n_tubes`.
     pub fn fk_actual(&mut self, actual: &[f64], force_n: [f64; 3]) -> Result<FkResult, SolveError> {
         self.bound.fk(actual, force_n, self.margins)
-    }
-
-    /// [`fk_actual`](Self::fk_actual) of a row without a tip force, with the joint
-    /// Jacobian of the tip as measured in `columns`: `2 n` columns in file order and
-    /// units (per mm, per degree), entries 0..3 `d position`, 3..6 the tip frame's
-    /// angular velocity in the measuring frame. The core's analytic Jacobian
-    /// ([`SolveError::Unsupported`] under gravity, where it has none); no margin.
-    ///
-    /// ```
-    /// use ctr_analysis::model::ModelSpec;
-    /// use ctr_formats::AnyRobot;
-    /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33); // straight
-    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
-    /// let mut columns = Vec::new();
-    /// let tip = rows.solver().fk_jacobian(&[50.0, 30.0], &mut columns)?;
-    /// assert!((tip.position[2] - 50.0).abs() < 1e-12);
-    /// assert!((columns[0][2] - 1.0).abs() < 1e-9); // feeding moves the tip along z
-    /// assert!((columns[1][5] - 1f64.to_radians()).abs() < 1e-12); // turning spins it
-    /// # Ok::<(), Box<dyn std::error::Error>>(())
-    /// ```
-    ///
-    /// # Panics
-    /// If `actual.len() != 2 * n_tubes`.
-    pub fn fk_jacobian(
-        &mut self,
-        actual: &[f64],
-        columns: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        self.bound.fk_jacobian(actual, columns)
-    }
-
-    /// [`fk_jacobian`](Self::fk_jacobian) and [`fk_scales`](Self::fk_scales) at once:
-    /// the joint columns into `joints`, the scale columns into `scales`, from one
-    /// derivative pass where the core can (up to three tubes).
-    ///
-    /// ```
-    /// use ctr_analysis::model::ModelSpec;
-    /// use ctr_formats::AnyRobot;
-    /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
-    /// let (mut joints, mut scales, mut alone) = (Vec::new(), Vec::new(), Vec::new());
-    /// rows.solver().fk_jacobians(&[50.0, 10.0], &mut joints, &mut scales)?;
-    /// rows.solver().fk_scales(&[50.0, 10.0], &mut alone)?;
-    /// assert_eq!((joints.len(), scales.len()), (2, 2));
-    /// assert!((0..6).all(|a| (scales[1][a] - alone[1][a]).abs() < 1e-12));
-    /// # Ok::<(), Box<dyn std::error::Error>>(())
-    /// ```
-    ///
-    /// # Panics
-    /// If `actual.len() != 2 * n_tubes`.
-    pub fn fk_jacobians(
-        &mut self,
-        actual: &[f64],
-        joints: &mut Vec<[f64; 6]>,
-        scales: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        self.bound.fk_jacobians(actual, joints, scales)
-    }
-
-    /// The tip of actual joints `actual` (file order and units; joint offsets and time
-    /// effects applied) without a tip force, with its derivatives in each tube's
-    /// stiffness scale and then each tube's curvature scale at this model's robot
-    /// written into `columns` (`2 n` columns; entries 0..3 the position's, 3..6 the tip
-    /// frame's angular velocity, both as measured): the core's analytic parameter
-    /// Jacobian. Under gravity the core has none ([`SolveError::Unsupported`]). No
-    /// stability margin.
-    ///
-    /// ```
-    /// use ctr_analysis::model::ModelSpec;
-    /// use ctr_formats::AnyRobot;
-    /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
-    /// let mut columns = Vec::new();
-    /// rows.solver().fk_scales(&[50.0, 0.0], &mut columns)?;
-    /// assert!(columns[0].iter().all(|v| v.abs() < 1e-12)); // one tube: its stiffness does not matter
-    /// assert!(columns[1][0].abs() > 1.0); // its curvature does
-    /// # Ok::<(), Box<dyn std::error::Error>>(())
-    /// ```
-    ///
-    /// # Panics
-    /// If `actual.len() != 2 * n_tubes`.
-    pub fn fk_scales(
-        &mut self,
-        actual: &[f64],
-        columns: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        self.bound.fk_scales(actual, columns)
     }
 
     /// [`fk`](Self::fk) with the backbone: the points (x, y, z, mm) from the guide exit

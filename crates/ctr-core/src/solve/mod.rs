@@ -211,6 +211,39 @@ impl<T: Real, const N: usize> Default for Solver<T, N> {
     }
 }
 
+/// The derivative `d` of the tip (with the tip's rotation `rotation` before the
+/// measurement) as `e`'s measurement sees it.
+fn measured_derivative<T: Real, const N: usize>(
+    e: &crate::model::effects::Effects<T, N>,
+    rotation: &nalgebra::Matrix3<T>,
+    d: &mut Derivative<'_, T, N>,
+) {
+    // the derivatives' lever arm is the sensor offset turned into W at the tip
+    let arm = rotation * nalgebra::Vector3::from(e.sensor_offset_mm);
+    let measure = |c: &mut nalgebra::Vector6<T>| *c = e.measured_column(c, &arm);
+    match d {
+        Derivative::Joints(j) => j
+            .feed
+            .iter_mut()
+            .chain(j.rotation.iter_mut())
+            .for_each(measure),
+        Derivative::Parameters(j) => j.columns_mut().for_each(measure),
+        Derivative::JointsAndParameters(j, p) => j
+            .feed
+            .iter_mut()
+            .chain(j.rotation.iter_mut())
+            .chain(p.columns_mut())
+            .for_each(measure),
+        Derivative::Loads(m) => {
+            for k in 0..6 {
+                let mut col: nalgebra::Vector6<T> = m.column(k).into_owned();
+                measure(&mut col);
+                m.set_column(k, &col);
+            }
+        }
+    }
+}
+
 impl<T: Real, const N: usize> Solver<T, N> {
     /// A solver with the given settings and no warm-start memory.
     ///
@@ -303,34 +336,71 @@ impl<T: Real, const N: usize> Solver<T, N> {
             self.unloaded_answer(robot, q, &sections, request, derivative.as_mut())
         };
         if let Some(e) = effects {
-            // the derivatives' lever arm is the sensor offset turned into W at the tip
-            let arm = sol.tip.rotation * nalgebra::Vector3::from(e.sensor_offset_mm);
-            let measure = |c: &mut nalgebra::Vector6<T>| *c = e.measured_column(c, &arm);
-            match derivative {
-                None => {}
-                Some(Derivative::Joints(j)) => j
-                    .feed
-                    .iter_mut()
-                    .chain(j.rotation.iter_mut())
-                    .for_each(measure),
-                Some(Derivative::Parameters(j)) => j.columns_mut().for_each(measure),
-                Some(Derivative::JointsAndParameters(j, p)) => j
-                    .feed
-                    .iter_mut()
-                    .chain(j.rotation.iter_mut())
-                    .chain(p.columns_mut())
-                    .for_each(measure),
-                Some(Derivative::Loads(m)) => {
-                    for k in 0..6 {
-                        let mut col: nalgebra::Vector6<T> = m.column(k).into_owned();
-                        measure(&mut col);
-                        m.set_column(k, &col);
-                    }
-                }
+            if let Some(d) = derivative.as_mut() {
+                measured_derivative(e, &sol.tip.rotation, d);
             }
             sol.tip = e.measured(&sol.tip);
         }
         Ok(sol)
+    }
+
+    /// The derivative `request` asks for (a joint or a parameter Jacobian, or both) at
+    /// `solution`, a solution of the same request without it from a solver with this
+    /// one's settings, without solving again: the same numbers as asking for it in the
+    /// solve (the solve's warm start does not depend on it, so a chain of plain solves
+    /// can be differentiated afterwards, row by row on any thread). Not under loads,
+    /// with boundary friction moments or with a sensor offset (whose lever arm needs the
+    /// tip before the measurement): [`SolveError::Unsupported`].
+    ///
+    /// ```
+    /// use ctr_core::{JointJacobian, Joints, Model, Request, Robot, Solver, TubeParams};
+    /// let robot = Robot::new([TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) }]).unwrap();
+    /// let q = Joints::new([50.0], [0.3]);
+    /// let mut solver = Solver::default();
+    /// let plain = solver.clone().solve(&robot, Request::new(q, Model::Torsion)).unwrap();
+    /// let (mut later, mut within) = (JointJacobian::nan(), JointJacobian::nan());
+    /// solver.derivative_at(&robot, Request::new(q, Model::Torsion).joint_jacobian(&mut later), &plain).unwrap();
+    /// solver.solve(&robot, Request::new(q, Model::Torsion).joint_jacobian(&mut within)).unwrap();
+    /// assert_eq!(later, within);
+    /// ```
+    pub fn derivative_at(
+        &self,
+        robot: &Robot<T, N>,
+        mut request: Request<'_, T, N>,
+        solution: &Solution<T, N>,
+    ) -> Result<(), SolveError> {
+        if let Some(u) = request.unsupported() {
+            return Err(SolveError::Unsupported(u));
+        }
+        let offset = request
+            .effects
+            .is_some_and(|e| e.sensor_offset_mm.iter().any(|v| *v != T::zero()));
+        let friction = request
+            .friction
+            .is_some_and(|f| f.iter().any(|v| *v != T::zero()));
+        if request.loaded() || friction || offset {
+            return Err(SolveError::Unsupported(Unsupported::DerivativeAtSolution));
+        }
+        let q = match request.effects {
+            Some(e) => e.actual(&request.joints),
+            None => request.joints,
+        };
+        q.validate(robot)?;
+        let sections = self.sections(robot, &q);
+        let setup = shooting::unloaded_setup(robot, &q, &sections, &request);
+        let Some(mut derivative) = request.derivative.take() else {
+            return Ok(());
+        };
+        shooting::derivative_of(
+            &setup,
+            &solution.base_twist_per_mm,
+            request.model,
+            &mut derivative,
+        );
+        if let Some(e) = request.effects {
+            measured_derivative(e, &solution.tip.rotation, &mut derivative);
+        }
+        Ok(())
     }
 
     /// The backbone's sections at `q` with this solver's step settings.

@@ -182,6 +182,9 @@ pub enum Unsupported {
     /// The softest mode's gradient under loads or with boundary friction moments (it is
     /// computed for the unloaded, frictionless twist).
     SoftestModeGradient,
+    /// A derivative at a given solution under loads, with boundary friction moments or
+    /// with a sensor offset (see `Solver::derivative_at`).
+    DerivativeAtSolution,
 }
 
 impl fmt::Display for Unsupported {
@@ -204,6 +207,9 @@ impl fmt::Display for Unsupported {
             }
             Unsupported::SoftestModeGradient => {
                 "the softest mode's gradient is computed for the unloaded model without friction moments"
+            }
+            Unsupported::DerivativeAtSolution => {
+                "a derivative at a given solution is computed without loads, friction moments or a sensor offset (ask for it in the solve)"
             }
         })
     }

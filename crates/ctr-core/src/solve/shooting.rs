@@ -148,6 +148,46 @@ fn pose<T: Real, const N: usize>(
     };
 }
 
+/// The unloaded integration of `request` on the checked actual joints `q` cut into
+/// `sections`: its mechanics and clearance kinks (the friction moments are the caller's).
+pub(crate) fn unloaded_setup<'s, T: Real, const N: usize>(
+    robot: &'s Robot<T, N>,
+    q: &'s Joints<T, N>,
+    sections: &'s Sections<T, N>,
+    request: &Request<'s, T, N>,
+) -> Setup<'s, T, N> {
+    Setup {
+        robot,
+        q,
+        sections,
+        mechanics: match request.model {
+            Model::Rigid => Mechanics::Rigid,
+            Model::Torsion => Mechanics::Torsion { coarse: false },
+        },
+        clearance: request
+            .effects
+            .map(|e| &e.clearance)
+            .filter(|c| c.iter().any(Option::is_some)),
+        friction: None,
+    }
+}
+
+/// The joint or parameter Jacobian (or both) `derivative` asks for, of the unmeasured tip
+/// of `setup` at the base twists `x` (a compliance is the loaded solver's).
+pub(crate) fn derivative_of<T: Real, const N: usize>(
+    setup: &Setup<'_, T, N>,
+    x: &[T; N],
+    model: Model,
+    derivative: &mut Derivative<'_, T, N>,
+) {
+    match derivative {
+        Derivative::Joints(j) => jacobian::joints(setup, x, model, j),
+        Derivative::Parameters(j) => jacobian::parameters(setup, x, model, j),
+        Derivative::JointsAndParameters(j, p) => jacobian::both(setup, x, model, j, p),
+        Derivative::Loads(_) => {}
+    }
+}
+
 impl<T: Real, const N: usize> Solver<T, N> {
     /// A request without loads on the checked actual joints `q`.
     #[inline(always)]
@@ -159,25 +199,11 @@ impl<T: Real, const N: usize> Solver<T, N> {
         request: Request<'_, T, N>,
         derivative: Option<&mut Derivative<'_, T, N>>,
     ) -> Solution<T, N> {
-        let clearance = request
-            .effects
-            .map(|e| &e.clearance)
-            .filter(|c| c.iter().any(Option::is_some));
-        let registration = request.effects.and_then(|e| e.registration);
         let friction = request
             .friction
             .filter(|f| f.iter().any(|v| *v != T::zero()));
-        let mut setup = Setup {
-            robot,
-            q,
-            sections,
-            mechanics: match request.model {
-                Model::Rigid => Mechanics::Rigid,
-                Model::Torsion => Mechanics::Torsion { coarse: false },
-            },
-            clearance,
-            friction: None,
-        };
+        let registration = request.effects.and_then(|e| e.registration);
+        let mut setup = unloaded_setup(robot, q, sections, &request);
         let inp = Inputs::plain(robot, q, &[T::zero(); N]);
         let mut backbone = request.backbone;
         let mut sol = Solution::nan();
@@ -206,18 +232,8 @@ impl<T: Real, const N: usize> Solver<T, N> {
                 self.boundary_friction(&setup, &inp, &free, backbone, registration, &mut sol);
             }
         }
-        match derivative {
-            Some(Derivative::Joints(j)) => {
-                jacobian::joints(&setup, &sol.base_twist_per_mm, request.model, j)
-            }
-            Some(Derivative::Parameters(j)) => {
-                jacobian::parameters(&setup, &sol.base_twist_per_mm, request.model, j)
-            }
-            Some(Derivative::JointsAndParameters(j, p)) => {
-                jacobian::both(&setup, &sol.base_twist_per_mm, request.model, j, p)
-            }
-            // the loaded solver answers a compliance
-            Some(Derivative::Loads(_)) | None => {}
+        if let Some(d) = derivative {
+            derivative_of(&setup, &sol.base_twist_per_mm, request.model, d);
         }
         sol
     }
