@@ -30,9 +30,10 @@
 //!
 //! ([`Moving`] says which of these a linearisation carries; the measurement always.)
 //!
-//! [`Linearised::new`] solves the rows of a model once without its measurement, with
-//! the core's analytic joint Jacobian ([`crate::model::RowSolver::fk_jacobian`]; under
-//! a load, where the core has none, central differences of warm solves);
+//! [`Linearised::new`] solves the rows of a model once without its measurement, in
+//! order along each run as a simulation does, then takes the core's analytic Jacobians
+//! at each row's solution on every thread ([`crate::model::RowSolver::derivatives_at`];
+//! under a load, where the core has none, central differences of warm solves);
 //! [`Linearised::predict`] then gives the prediction of any model that differs from it
 //! only in those six effects, at the cost of the time effects along the runs and no
 //! solve. The central difference of two such predictions is the chain rule
@@ -265,19 +266,26 @@ impl Linearised {
         Ok(Some(out))
     }
 
-    /// What [`new`](Self::new) costs per row, in solves of the row: about 3 with the
-    /// core's analytic joint Jacobian, `1 + 4 n` under a load (its probes); `None`
-    /// where `model` is not linearised. A fit's Jacobian linearises only where this is
-    /// below the two solves per parameter it saves.
-    pub fn solves_per_row(model: &ModelSpec, rec: &Recording, rows: &[usize]) -> Option<f64> {
-        Self::cost_per_row(model, rec, rows, Moving::Joints)
-    }
-
     /// What [`moving`](Self::moving) costs per row with `moving`, in solves of the row
     /// (measured on the real three-tube recording: [`ANALYTIC_SOLVES`],
     /// [`SCALES_SOLVES`], [`BOTH_SOLVES`]; under a load the joints' probes, `1 + 4 n`);
     /// `None` where it is not linearised that way (a learned term; the scales under a
-    /// load).
+    /// load). A fit's Jacobian linearises only where this is below the two solves per
+    /// parameter it saves.
+    ///
+    /// ```
+    /// use ctr_analysis::linearised::{Linearised, Moving, ANALYTIC_SOLVES};
+    /// use ctr_analysis::model::ModelSpec;
+    /// use ctr_formats::{Recording, RobotSpec};
+    /// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+    ///     length_mm = 260.0\ncurved_length_mm = 90.0\ncurvature_radius_mm = 100.0\n\
+    ///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+    /// let rec = Recording::read("s1_mm,theta1_deg,x_mm,y_mm,z_mm\n150,0,0,0,150\n".as_bytes(), "rec.csv", 1)?;
+    /// let m = ModelSpec::from_spec(&spec);
+    /// assert_eq!(Linearised::cost_per_row(&m, &rec, &[0], Moving::Joints), Some(ANALYTIC_SOLVES));
+    /// assert_eq!(Linearised::cost_per_row(&m, &rec, &[0], Moving::Measurement), Some(1.0));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn cost_per_row(
         model: &ModelSpec,
         rec: &Recording,
@@ -346,15 +354,7 @@ impl Linearised {
                     out.q[row] = canonical_quaternion(&measured.orientation());
                     continue;
                 }
-                let mut dp = Vector3::zeros();
-                let mut omega = Vector3::zeros();
-                let mut add = |columns: &[[f64; 6]], change: &mut dyn FnMut(usize) -> f64| {
-                    for (j, col) in columns.iter().enumerate() {
-                        let d = change(j);
-                        dp += Vector3::new(col[0], col[1], col[2]) * d;
-                        omega += Vector3::new(col[3], col[4], col[5]) * d;
-                    }
-                };
+                let (mut dp, mut omega) = (Vector3::zeros(), Vector3::zeros());
                 if !same_joints {
                     let a = shifted.as_ref().map_or(&rec.rows[row].q[..], |v| v.row(k));
                     row_model
@@ -362,12 +362,12 @@ impl Linearised {
                         .validate_joints(a)
                         .map_err(|error| SimError::Joint { row, error })?;
                     let at = &self.actual[row * w..(row + 1) * w];
-                    add(&self.jacobian[row * w..(row + 1) * w], &mut |j| {
-                        a[j] - at[j]
-                    });
+                    let da = a.iter().zip(at).map(|(a, at)| a - at);
+                    add_moves(&mut dp, &mut omega, &self.jacobian[row * w..], da);
                 }
                 if let Some(change) = &scaled {
-                    add(&self.scales[row * w..(row + 1) * w], &mut |j| change[j]);
+                    let ds = change.iter().copied();
+                    add_moves(&mut dp, &mut omega, &self.scales[row * w..], ds);
                 }
                 let moved = Frame {
                     rotation: Rotation3::new(omega).into_inner() * tip.rotation,
@@ -379,6 +379,20 @@ impl Linearised {
             }
         }
         Ok(Some(out))
+    }
+}
+
+/// Adds to the tip's move `(dp, omega)` each of `columns` times its change in
+/// `changes` (as many columns as changes are used).
+fn add_moves(
+    dp: &mut Vector3<f64>,
+    omega: &mut Vector3<f64>,
+    columns: &[[f64; 6]],
+    changes: impl Iterator<Item = f64>,
+) {
+    for (col, d) in columns.iter().zip(changes) {
+        *dp += Vector3::new(col[0], col[1], col[2]) * d;
+        *omega += Vector3::new(col[3], col[4], col[5]) * d;
     }
 }
 

@@ -57,16 +57,19 @@ fn setting() -> (ModelSpec, Recording, Vec<usize>) {
 /// `m` moved by `d` steps of one parameter.
 type Step<'a> = Box<dyn Fn(f64) -> ModelSpec + 'a>;
 
+/// The step of `m` that `f` takes (`f(model, d)` moves one parameter by `d` steps).
+fn step_of(m: &ModelSpec, f: fn(&mut ModelSpec, f64)) -> Step<'_> {
+    Box::new(move |d| {
+        let mut moved = m.clone();
+        f(&mut moved, d);
+        moved
+    })
+}
+
 /// Steps of one parameter of each effect on the joints or the measurement: the model
 /// moved by `+d` and by `-d` of the step.
 fn steps(m: &ModelSpec) -> Vec<(&'static str, Step<'_>)> {
-    let at = move |f: fn(&mut ModelSpec, f64)| -> Step<'_> {
-        Box::new(move |d| {
-            let mut moved = m.clone();
-            f(&mut moved, d);
-            moved
-        })
-    };
+    let at = |f| step_of(m, f);
     vec![
         (
             "feed offset of tube 2, mm",
@@ -265,13 +268,7 @@ fn scaled_setting() -> (ModelSpec, Recording, Vec<usize>) {
 /// Steps of a stiffness and a precurvature factor (the model moved by `+d` and `-d`
 /// of the step): a fit's natural step.
 fn scale_steps(m: &ModelSpec) -> Vec<(&'static str, Step<'_>)> {
-    let at = move |f: fn(&mut ModelSpec, f64)| -> Step<'_> {
-        Box::new(move |d| {
-            let mut moved = m.clone();
-            f(&mut moved, d);
-            moved
-        })
-    };
+    let at = |f| step_of(m, f);
     vec![
         (
             "stiffness factor of tube 2",
@@ -329,11 +326,10 @@ fn each_way_refuses_what_it_does_not_carry() {
         assert_eq!(predicts(&softer), scales, "{way:?} and a stiffness");
         // the measurement moves with every way, exactly
         assert!(predicts(&turned), "{way:?} and a registration");
-        let gap = apart(&lin, &rec, &rows, &|d| {
-            let mut moved = m.clone();
-            moved.effects.registration.as_mut().unwrap().rotation_deg += 0.05 * d;
-            moved
+        let turn = step_of(&m, |m, d| {
+            m.effects.registration.as_mut().unwrap().rotation_deg += 0.05 * d
         });
+        let gap = apart(&lin, &rec, &rows, &turn);
         assert!(gap <= ROUNDING, "{way:?}: the registration {gap:.2e} apart");
     }
 }

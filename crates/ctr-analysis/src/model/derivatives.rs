@@ -1,6 +1,7 @@
 //! The derivatives of a row's tip: the core's analytic Jacobians in the joints and in the
-//! tubes' stiffness and curvature scales, asked in the solve or at a solution kept from
-//! a run's chain of solves ([`RowSolver::fk_kept`]).
+//! tubes' stiffness and curvature scales: the joints' asked in the solve
+//! ([`RowSolver::fk_jacobian`]), or either at a solution kept from a run's chain of
+//! solves ([`RowSolver::fk_kept`], [`RowSolver::derivatives_at`]).
 
 use super::{Kept, RowSolver};
 use ctr_core::SolveError;
@@ -64,11 +65,14 @@ impl RowSolver<'_> {
     }
 
     /// The joint columns (into `joints`, as [`fk_jacobian`](Self::fk_jacobian)'s) and
-    /// the scale columns (into `scales`, as [`fk_scales`](Self::fk_scales)'s) asked
-    /// for, at `kept`, the row `actual` as [`fk_kept`](Self::fk_kept) solved it without
-    /// a tip force (by any solver of this model: nothing is solved again). Not with a
-    /// sensor offset, under a load or boundary friction moments
-    /// ([`SolveError::Unsupported`]).
+    /// the scale columns (into `scales`: `2 n` columns, first per tube the stiffness
+    /// scale's, E I and G J together, the `stiffness` effect's factor relative to the
+    /// one solved at; then per tube the curvature scale's, the precurvature `k_i`
+    /// relative to the one solved at, whose reciprocal is the `precurvature` effect's
+    /// radius factor; entries as the joint columns') asked for, at `kept`, the row
+    /// `actual` as [`fk_kept`](Self::fk_kept) solved it without a tip force (by any
+    /// solver of this model: nothing is solved again). Not with a sensor offset, under a
+    /// load or boundary friction moments ([`SolveError::Unsupported`]).
     ///
     /// # Panics
     /// If `actual.len() != 2 * n_tubes`, or `kept` is of another tube count.
@@ -80,63 +84,5 @@ impl RowSolver<'_> {
         scales: Option<&mut Vec<[f64; 6]>>,
     ) -> Result<(), SolveError> {
         self.bound.derivatives_at(actual, kept, joints, scales)
-    }
-
-    /// [`fk_jacobian`](Self::fk_jacobian) and [`fk_scales`](Self::fk_scales) at once:
-    /// the joint columns into `joints`, the scale columns into `scales`, from one
-    /// derivative pass where the core can (up to three tubes).
-    ///
-    /// ```
-    /// use ctr_analysis::model::ModelSpec;
-    /// use ctr_formats::AnyRobot;
-    /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
-    /// let (mut joints, mut scales, mut alone) = (Vec::new(), Vec::new(), Vec::new());
-    /// rows.solver().fk_jacobians(&[50.0, 10.0], &mut joints, &mut scales)?;
-    /// rows.solver().fk_scales(&[50.0, 10.0], &mut alone)?;
-    /// assert_eq!((joints.len(), scales.len()), (2, 2));
-    /// assert!((0..6).all(|a| (scales[1][a] - alone[1][a]).abs() < 1e-12));
-    /// # Ok::<(), Box<dyn std::error::Error>>(())
-    /// ```
-    ///
-    /// # Panics
-    /// If `actual.len() != 2 * n_tubes`.
-    pub fn fk_jacobians(
-        &mut self,
-        actual: &[f64],
-        joints: &mut Vec<[f64; 6]>,
-        scales: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        self.bound.fk_jacobians(actual, joints, scales)
-    }
-
-    /// The tip of actual joints `actual` (file order and units; joint offsets and time
-    /// effects applied) without a tip force, with its derivatives in each tube's
-    /// stiffness scale and then each tube's curvature scale at this model's robot
-    /// written into `columns` (`2 n` columns; entries 0..3 the position's, 3..6 the tip
-    /// frame's angular velocity, both as measured): the core's analytic parameter
-    /// Jacobian. Under gravity the core has none ([`SolveError::Unsupported`]). No
-    /// stability margin.
-    ///
-    /// ```
-    /// use ctr_analysis::model::ModelSpec;
-    /// use ctr_formats::AnyRobot;
-    /// let t = ctr_core::TubeParams { curvature_radius_mm: Some(100.0), ..ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
-    /// let rows = ModelSpec::plain(&AnyRobot::new(&[t]).unwrap(), ctr_core::Model::Torsion).rows()?;
-    /// let mut columns = Vec::new();
-    /// rows.solver().fk_scales(&[50.0, 0.0], &mut columns)?;
-    /// assert!(columns[0].iter().all(|v| v.abs() < 1e-12)); // one tube: its stiffness does not matter
-    /// assert!(columns[1][0].abs() > 1.0); // its curvature does
-    /// # Ok::<(), Box<dyn std::error::Error>>(())
-    /// ```
-    ///
-    /// # Panics
-    /// If `actual.len() != 2 * n_tubes`.
-    pub fn fk_scales(
-        &mut self,
-        actual: &[f64],
-        columns: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        self.bound.fk_scales(actual, columns)
     }
 }

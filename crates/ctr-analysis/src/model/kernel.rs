@@ -201,23 +201,6 @@ impl<const N: usize> Kernel<N> {
         )
     }
 
-    /// [`solve`](Self::solve) without a tip force, with the joint and the parameter
-    /// Jacobians of the measured tip written into `joints` and `parameters`, from one
-    /// derivative pass where the core can (see
-    /// [`jacobian`](Self::jacobian) and [`parameter_jacobian`](Self::parameter_jacobian)).
-    pub fn jacobians(
-        &self,
-        solver: &mut Solver<f64, N>,
-        q: Joints<f64, N>,
-        joints: &mut JointJacobian<f64, N>,
-        parameters: &mut ParameterJacobian<f64, N>,
-    ) -> Result<Solution<f64, N>, SolveError> {
-        solver.solve(
-            &self.robot,
-            self.request(q, [0.0; 3]).jacobians(joints, parameters),
-        )
-    }
-
     /// The joint Jacobian (into `joints`) and the parameter Jacobian (into `parameters`)
     /// asked for, of the measured tip at `sol`, a solution of [`solve`](Self::solve)
     /// at `q` without a tip force: the same numbers as asking in the solve, without
@@ -238,21 +221,6 @@ impl<const N: usize> Kernel<N> {
             (None, None) => return Ok(()),
         };
         solver.derivative_at(&self.robot, request, sol)
-    }
-
-    /// [`solve`](Self::solve) without a tip force, with the parameter Jacobian of the
-    /// measured tip written into `jacobian` (the core's analytic one, at the scales of
-    /// this kernel's robot; under gravity the core has none: [`SolveError::Unsupported`]).
-    pub fn parameter_jacobian(
-        &self,
-        solver: &mut Solver<f64, N>,
-        q: Joints<f64, N>,
-        jacobian: &mut ParameterJacobian<f64, N>,
-    ) -> Result<Solution<f64, N>, SolveError> {
-        solver.solve(
-            &self.robot,
-            self.request(q, [0.0; 3]).parameter_jacobian(jacobian),
-        )
     }
 }
 
@@ -298,7 +266,8 @@ pub(crate) enum Bound<'k> {
     Four(&'k Kernel<4>, Solver<f64, 4>),
 }
 
-/// A row's core solution, kept by [`Bound::fk_kept`] for its derivatives later.
+/// A row's core solution, kept by [`crate::model::RowSolver::fk_kept`] for its derivatives
+/// later ([`crate::model::RowSolver::derivatives_at`]).
 #[derive(Clone, Copy, Debug)]
 pub enum Kept {
     /// A one-tube robot's.
@@ -368,28 +337,6 @@ impl Bound<'_> {
         })
     }
 
-    /// [`fk_jacobian`](Self::fk_jacobian) and [`fk_scales`](Self::fk_scales) at once
-    /// (one derivative pass where the core can: up to three tubes).
-    ///
-    /// # Panics
-    /// If `actual.len()` is not twice the tube count.
-    pub fn fk_jacobians(
-        &mut self,
-        actual: &[f64],
-        joints: &mut Vec<[f64; 6]>,
-        scales: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        each_count!(self, |k, s| {
-            let q = joints_of(actual);
-            let (mut jac, mut par) = (JointJacobian::nan(), ParameterJacobian::nan());
-            k.jacobians(s, q, &mut jac, &mut par).map(|sol| {
-                joint_columns(&jac, joints);
-                scale_columns(&par, scales);
-                FkResult::from_solution(&sol, f64::NAN)
-            })
-        })
-    }
-
     /// [`fk`](Self::fk) without a stability margin, with the core's solution kept for
     /// [`derivatives_at`](Self::derivatives_at).
     ///
@@ -415,8 +362,7 @@ impl Bound<'_> {
     }
 
     /// The joint columns (into `joints`, as [`fk_jacobian`](Self::fk_jacobian)'s) and
-    /// the scale columns (into `scales`, as [`fk_scales`](Self::fk_scales)'s) asked for,
-    /// at `kept`, the row `actual` solved by [`fk_kept`](Self::fk_kept) without a tip
+    /// the scale columns (into `scales`, [`scale_columns`]) asked for, at `kept`, the row `actual` solved by [`fk_kept`](Self::fk_kept) without a tip
     /// force by a solver of this model (any, warm or not: nothing is solved again).
     ///
     /// # Panics
@@ -455,32 +401,6 @@ impl Bound<'_> {
             (Bound::Four(k, s), Kept::Four(sol)) => at!(k, s, sol),
             _ => panic!("a row kept by a solver of another tube count"),
         }
-    }
-
-    /// [`fk`](Self::fk) of a row without a tip force, with the derivatives of the tip as
-    /// measured in each tube's stiffness and precurvature written into `columns`: `2 n`
-    /// columns, first per tube the stiffness scale (E I and G J together, the
-    /// `stiffness` effect's factor relative to the one solved at), then per tube the
-    /// curvature scale (the precurvature `k_i` relative to the one solved at; the
-    /// `precurvature` effect's radius factor is its reciprocal); entries as
-    /// [`fk_jacobian`](Self::fk_jacobian)'s. The core's analytic Jacobian: under gravity
-    /// it has none ([`SolveError::Unsupported`]). No stability margin.
-    ///
-    /// # Panics
-    /// If `actual.len()` is not twice the tube count.
-    pub fn fk_scales(
-        &mut self,
-        actual: &[f64],
-        columns: &mut Vec<[f64; 6]>,
-    ) -> Result<FkResult, SolveError> {
-        each_count!(self, |k, s| {
-            let q = joints_of(actual);
-            let mut jac = ParameterJacobian::nan();
-            k.parameter_jacobian(s, q, &mut jac).map(|sol| {
-                scale_columns(&jac, columns);
-                FkResult::from_solution(&sol, f64::NAN)
-            })
-        })
     }
 
     /// [`fk`](Self::fk) with the backbone points (x, y, z, mm, from the guide exit to

@@ -282,7 +282,36 @@ fn pass<T: Real, const N: usize, const K: usize>(
     };
     let residuals =
         |tips: &[Option<Dual<T, K>>; N]| tips.map(|t| t.unwrap_or(Dual::cst(T::zero())));
-    let out = match wrt {
+    // the unknowns, then the feeds and all rotations but the last (see `last_rotation`)
+    let seed_joints =
+        |xs: &mut [Dual<T, K>; N], s: &mut [Dual<T, K>; N], th: &mut [Dual<T, K>; N]| {
+            seed_x(xs);
+            for i in 0..N {
+                s[i] = Dual::var(plain.s[i], m + i);
+            }
+            for i in 0..N - 1 {
+                th[i] = Dual::var(plain.theta[i], m + N + i);
+            }
+        };
+    // every input dual, the parameters' scales seeded from direction `at` on
+    // (d/d(scale) at scale 1 is the value itself)
+    let with_scales = |at: usize| {
+        let mut inp = Inputs {
+            s: dual(&plain.s),
+            theta: dual(&plain.theta),
+            x: dual(&plain.x),
+            ei: dual(&plain.ei),
+            gj: dual(&plain.gj),
+            k: dual(&plain.k),
+        };
+        for i in 0..N {
+            inp.ei[i] = seeded(plain.ei[i], at + i, plain.ei[i]);
+            inp.gj[i] = seeded(plain.gj[i], at + N + i, plain.gj[i]);
+            inp.k[i] = seeded(plain.k[i], at + 2 * N + i, plain.k[i]);
+        }
+        inp
+    };
+    match wrt {
         Wrt::Joints => {
             // the stiffnesses stay plain numbers: half the work in every product
             let mut inp = Inputs {
@@ -293,43 +322,18 @@ fn pass<T: Real, const N: usize, const K: usize>(
                 gj: plain.gj,
                 k: plain.k,
             };
-            seed_x(&mut inp.x);
-            for i in 0..N {
-                inp.s[i] = Dual::var(plain.s[i], m + i);
-            }
-            for i in 0..N - 1 {
-                inp.theta[i] = Dual::var(plain.theta[i], m + N + i);
-            }
+            seed_joints(&mut inp.x, &mut inp.s, &mut inp.theta);
             let pass = run::<T, _, T, TwistState<_, N>, _, N>(setup, &inp, Tangents::identity());
             let tangent = pass.frame.columns();
             let mut cols =
                 implicit_columns::<T, N, K>(&residuals(&pass.tips), &tangent, m, 2 * N - 1);
             last_rotation::<T, N>(&mut cols, &pass.frame.p);
-            return cols;
+            cols
         }
         Wrt::Both => {
-            let mut inp = Inputs {
-                s: dual(&plain.s),
-                theta: dual(&plain.theta),
-                x: dual(&plain.x),
-                ei: dual(&plain.ei),
-                gj: dual(&plain.gj),
-                k: dual(&plain.k),
-            };
-            seed_x(&mut inp.x);
-            for i in 0..N {
-                inp.s[i] = Dual::var(plain.s[i], m + i);
-            }
-            for i in 0..N - 1 {
-                inp.theta[i] = Dual::var(plain.theta[i], m + N + i);
-            }
             // the parameters after the joints' 2 N - 1 directions
-            let at = m + 2 * N - 1;
-            for i in 0..N {
-                inp.ei[i] = seeded(plain.ei[i], at + i, plain.ei[i]);
-                inp.gj[i] = seeded(plain.gj[i], at + N + i, plain.gj[i]);
-                inp.k[i] = seeded(plain.k[i], at + 2 * N + i, plain.k[i]);
-            }
+            let mut inp = with_scales(m + 2 * N - 1);
+            seed_joints(&mut inp.x, &mut inp.s, &mut inp.theta);
             let pass = run::<T, _, _, TwistState<_, N>, _, N>(setup, &inp, Tangents::identity());
             let tangent = pass.frame.columns();
             let found = implicit_columns::<T, N, K>(&residuals(&pass.tips), &tangent, m, 5 * N - 1);
@@ -339,29 +343,15 @@ fn pass<T: Real, const N: usize, const K: usize>(
             cols[..2 * N - 1].copy_from_slice(&found[..2 * N - 1]);
             last_rotation::<T, N>(&mut cols, &pass.frame.p);
             cols[2 * N..5 * N].copy_from_slice(&found[2 * N - 1..5 * N - 1]);
-            return cols;
+            cols
         }
         Wrt::Parameters => {
-            // d/d(scale) at scale 1 is the value itself
-            let mut inp = Inputs {
-                s: dual(&plain.s),
-                theta: dual(&plain.theta),
-                x: dual(&plain.x),
-                ei: dual(&plain.ei),
-                gj: dual(&plain.gj),
-                k: dual(&plain.k),
-            };
+            let mut inp = with_scales(m);
             seed_x(&mut inp.x);
-            for i in 0..N {
-                inp.ei[i] = seeded(plain.ei[i], m + i, plain.ei[i]);
-                inp.gj[i] = seeded(plain.gj[i], m + N + i, plain.gj[i]);
-                inp.k[i] = seeded(plain.k[i], m + 2 * N + i, plain.k[i]);
-            }
             let pass = run::<T, _, _, TwistState<_, N>, _, N>(setup, &inp, Tangents::identity());
-            (residuals(&pass.tips), pass.frame.columns())
+            implicit_columns::<T, N, K>(&residuals(&pass.tips), &pass.frame.columns(), m, 3 * N)
         }
-    };
-    implicit_columns::<T, N, K>(&out.0, &out.1, m, 3 * N)
+    }
 }
 
 /// Completes the joint columns `cols` (feeds, then `N - 1` rotations) with the last
