@@ -300,9 +300,6 @@ fn account(
 /// The log marginal likelihood of the training rows as a function of the
 /// hyperparameters (mapped from unbounded `p` into their bounds).
 struct Likelihood {
-    /// The last value computed, at its free parameters (argmin asks for the cost and the
-    /// gradient at the same point one after the other).
-    last: std::sync::Mutex<Option<(Vec<f64>, Value)>>,
     /// Training inputs, standardised (rows).
     u: DMatrix<f64>,
     /// Targets (rows, x y z).
@@ -340,7 +337,6 @@ impl Likelihood {
         let noise_hi = (MAX_NOISE_SHARE * spread).max(2.0 * noise_floor);
         bounds.push((noise_floor, noise_hi));
         Likelihood {
-            last: std::sync::Mutex::new(None),
             u,
             y,
             bounds,
@@ -381,7 +377,7 @@ impl Likelihood {
         let solver = LBFGS::new(MoreThuenteLineSearch::new(), 7)
             .with_tolerance_cost(LIKELIHOOD_TOLERANCE_NATS)
             .ok()?;
-        let run = Executor::new(self, solver)
+        let run = Executor::new(Run::new(self), solver)
             .configure(|s| s.param(p0).max_iters(MAX_ITERATIONS))
             .run()
             .ok()?;
@@ -397,19 +393,6 @@ impl Likelihood {
             .zip(&self.bounds)
             .map(|(v, b)| from_free(*v, *b))
             .collect()
-    }
-
-    /// [`value`](Self::value), remembered for the last `p`.
-    fn cached(&self, p: &[f64]) -> Option<Value> {
-        let mut last = self.last.lock().ok()?;
-        if let Some((at, v)) = last.as_ref() {
-            if at.as_slice() == p {
-                return Some(v.clone());
-            }
-        }
-        let v = self.value(p)?;
-        *last = Some((p.to_vec(), v.clone()));
-        Some(v)
     }
 
     /// The negative log marginal likelihood at `p` and its gradient in `p`.
@@ -525,7 +508,39 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     (sums[0] + sums[1]) + (sums[2] + sums[3]) + tail
 }
 
-impl CostFunction for &Likelihood {
+/// One L-BFGS run over a [`Likelihood`]: argmin asks for the cost and the gradient at
+/// the same point one after the other, so the run remembers its last value. Each run
+/// has its own memory, so runs from several starts go side by side without waiting on
+/// each other.
+struct Run<'a> {
+    likelihood: &'a Likelihood,
+    /// The last value computed, at its free parameters.
+    last: std::cell::RefCell<Option<(Vec<f64>, Value)>>,
+}
+
+impl<'a> Run<'a> {
+    fn new(likelihood: &'a Likelihood) -> Self {
+        Run {
+            likelihood,
+            last: std::cell::RefCell::new(None),
+        }
+    }
+
+    /// [`Likelihood::value`], remembered for the last `p`.
+    fn cached(&self, p: &[f64]) -> Option<Value> {
+        let mut last = self.last.borrow_mut();
+        if let Some((at, v)) = last.as_ref() {
+            if at.as_slice() == p {
+                return Some(v.clone());
+            }
+        }
+        let v = self.likelihood.value(p)?;
+        *last = Some((p.to_vec(), v.clone()));
+        Some(v)
+    }
+}
+
+impl CostFunction for Run<'_> {
     type Param = Vec<f64>;
     type Output = f64;
     fn cost(&self, p: &Vec<f64>) -> Result<f64, argmin::core::Error> {
@@ -533,7 +548,7 @@ impl CostFunction for &Likelihood {
     }
 }
 
-impl Gradient for &Likelihood {
+impl Gradient for Run<'_> {
     type Param = Vec<f64>;
     type Gradient = Vec<f64>;
     fn gradient(&self, p: &Vec<f64>) -> Result<Vec<f64>, argmin::core::Error> {
