@@ -74,6 +74,7 @@ pub(crate) fn finish(
     );
     if start.checks.present {
         grade::by_intervals(&mut findings);
+        grade::by_bounds(&mut findings, &problem, &problem.read(&fitted));
     }
     let established = established_alone(&start, &problem, &fitted, &findings);
     // a finding its intervals lowered to predictive no longer explains anything

@@ -9,7 +9,9 @@
 //!   feature of the rows, and their joint 95 % region excludes the nominal), and at least
 //!   one of its parameters' 95 % intervals (`ci95`, as the report prints them) excludes
 //!   the value that means "not there" ([`absent_value`]: a play, a deflection, a lag, an
-//!   offset of 0; a factor of 1). This is physics the data show;
+//!   offset of 0; a factor of 1), and none sits on a bound of its fit ([`on_bounds`]:
+//!   pushed as far as the fit allows, its interval cut by the bound). This is physics
+//!   the data show;
 //! - **predictive**: it fails a check (or no interval excludes "not there"), but the
 //!   fitted model without it does worse on the held-out rows beyond chance
 //!   ([`crate::paired::clearly_lower`]): it helps prediction, its form is not
@@ -20,6 +22,8 @@
 //! it may vary with something, so a failed form check alone no longer throws physics
 //! away: it lowers the grade.
 
+use crate::candidates::EffectId;
+use crate::fit::Problem;
 use crate::report::numbers::intervals;
 use crate::report::{Finding, Grade};
 
@@ -98,6 +102,50 @@ pub(crate) fn by_intervals(findings: &mut [Finding]) {
     }
 }
 
+/// How close to a bound of its fit a parameter counts as on it, in its natural steps
+/// ([`Problem::scale`]): the steps land on a bound exactly (clamped), so this only
+/// absorbs rounding.
+const ON_BOUND_STEPS: f64 = 1e-6;
+
+/// The effects of `problem` with a parameter at `x` on a bound of its fit other than
+/// the value that means "not there" (0 in every fitted parameter: an offset, a play, a
+/// lag, the log of a factor): the data pushed it as far as the fit lets it go (a
+/// stiffness a seventh of the catalogue's, gravity at five times the earth's).
+fn on_bounds(problem: &Problem, x: &[f64]) -> Vec<EffectId> {
+    let mut out = Vec::new();
+    for (j, &v) in x.iter().enumerate() {
+        let (step, (lo, hi)) = problem.scale(j);
+        let on = |b: f64| b != 0.0 && b.is_finite() && (v - b).abs() <= ON_BOUND_STEPS * step;
+        let effect = problem.effect_of(j);
+        if (on(lo) || on(hi)) && !out.contains(&effect) {
+            out.push(effect);
+        }
+    }
+    out
+}
+
+/// Lowers to predictive every established finding whose effect has a parameter at `x`
+/// on a bound of `problem`'s fit ([`on_bounds`]): the fit's value is not a minimum the
+/// data place inside the plausible range, its interval is cut by the bound, and an
+/// effect pushed that far most likely stands in for something else.
+pub(crate) fn by_bounds(findings: &mut [Finding], problem: &Problem, x: &[f64]) {
+    lower_on_bound(findings, &on_bounds(problem, x));
+}
+
+/// [`by_bounds`] for the effects `on_bound`.
+fn lower_on_bound(findings: &mut [Finding], on_bound: &[EffectId]) {
+    for f in findings
+        .iter_mut()
+        .filter(|f| f.grade == Grade::Established && on_bound.contains(&f.effect))
+    {
+        f.grade = Grade::Predictive;
+        f.grade_reason = "it passes every check, but a parameter sits on the bound of its \
+                          fit: the data push it beyond any plausible value, so it may stand \
+                          in for something outside the vocabulary"
+            .into();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -166,5 +214,28 @@ mod tests {
         assert_eq!(ratio([0.95, 1.31], Some(1.0)), Grade::Predictive);
         // a combination across effects (no not_there) says nothing of this one
         assert_eq!(ratio([1.29, 1.31], None), Grade::Predictive);
+    }
+
+    #[test]
+    fn a_finding_on_a_bound_of_its_fit_is_only_predictive() {
+        let f = || {
+            finding(
+                json!({"factor": [0.151, 0.135]}),
+                json!({"factor": [[0.139, 0.163], [0.135, 0.146]]}),
+            )
+        };
+        let mut on = vec![f()];
+        by_intervals(&mut on);
+        assert_eq!(on[0].grade, Grade::Established, "its intervals exclude 1");
+        lower_on_bound(&mut on, &[EffectId::Precurvature]);
+        assert_eq!(on[0].grade, Grade::Predictive);
+        assert!(on[0].grade_reason.contains("bound"));
+        let mut off = vec![f()];
+        lower_on_bound(&mut off, &[EffectId::Stiffness]);
+        assert_eq!(
+            off[0].grade,
+            Grade::Established,
+            "another effect on a bound"
+        );
     }
 }

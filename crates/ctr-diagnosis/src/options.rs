@@ -41,7 +41,8 @@ pub struct Checks {
     /// Its parameters' joint 95 % region excludes the nominal.
     pub identified: bool,
     /// At least one of its parameters' 95 % intervals excludes the value that means it
-    /// is not there (where its parameters are identified alone).
+    /// is not there (where its parameters are identified alone), and none of its
+    /// parameters sits on a bound of its fit (where the interval is cut by the bound).
     pub present: bool,
 }
 

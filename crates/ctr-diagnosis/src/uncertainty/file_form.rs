@@ -10,6 +10,12 @@ use crate::report::prose::parameters;
 use nalgebra::{DMatrix, DVector};
 use serde_json::Value;
 
+/// A whole turn, deg: an angle's interval this wide holds every angle (open).
+const FULL_TURN_DEG: f64 = 360.0;
+/// Relative slack on [`FULL_TURN_DEG`] for the forward-difference derivative of an angle
+/// that is the parameter itself (1 to rounding).
+const TURN_TOLERANCE: f64 = 1e-6;
+
 impl Assessment {
     /// The `ci95` of block `b` (its parameters from `at`): the file form of
     /// [`parameters`] with each number replaced by `[lo, hi]` (`null` where unbounded).
@@ -82,6 +88,14 @@ impl Assessment {
         let (at, base) = (form.at, form.base[o]);
         match deps {
             [] => [Some(base), Some(base)],
+            // an angle free over a whole turn: its end points would unwrap onto one
+            // another and print an interval from one side of the circle to the value
+            [j] if form.degrees[o]
+                && (self.interval(at + j).1 - self.interval(at + j).0) * form.g[(o, *j)].abs()
+                    >= FULL_TURN_DEG * (1.0 - TURN_TOLERANCE) =>
+            {
+                [None, None]
+            }
             [j] => {
                 let (lo, hi) = self.interval(at + j);
                 let mut ends = vec![base];
