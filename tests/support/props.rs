@@ -2,7 +2,7 @@
 //!
 //! # The same cases every run
 //!
-//! Every property draws its cases from the fixed seed [`SEED`], or from
+//! Every property draws its cases from the fixed seed `SEED`, or from
 //! `PROPTEST_RNG_SEED` when that is set: two runs of one commit (CI's included) run the
 //! same cases and print the same lines. The case count is the test's own (the count CI
 //! runs), or `PROPTEST_CASES` when that is set. Fresh seeds and large counts are
@@ -18,7 +18,7 @@
 //!
 //! # A failure
 //!
-//! [`check`] panics at the test's line with the property's reason, the seed and count
+//! `check` panics at the test's line with the property's reason, the seed and count
 //! of the run, the regression file and one line to paste into it: the `cc` line of the
 //! shrunk case (already appended when the run found it).
 
@@ -260,7 +260,7 @@ fn tube(inner_od: Option<f64>, length_mm: f64) -> impl Strategy<Value = TubePara
 
 /// A random valid robot of `n` tubes (1 to 4), outermost first: tube lengths from
 /// 60 to 300 mm for tube 1, each inner tube 10 to 150 mm longer than the one around
-/// it (it must reach beyond it), tubes as [`tube`] draws them.
+/// it (it must reach beyond it), tubes as `tube` draws them.
 pub fn robot(n: usize) -> BoxedStrategy<Vec<TubeParams<f64>>> {
     assert!((1..=ctr_core::MAX_TUBES).contains(&n));
     (

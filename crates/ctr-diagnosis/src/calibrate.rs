@@ -23,7 +23,7 @@ const TABLE_START_DEG: f64 = 0.5;
 /// `calibrate` of a lab that knows what to identify (a clearance profile, the stiffness
 /// from tip deflections under known hung weights recorded as `fx_n,fy_n,fz_n`, ...).
 /// Effects the model already has are refitted from their values. The fit starts from
-/// every combination of the effects' starts ([`starts`]) and, with several effects, also
+/// every combination of the effects' starts (`starts`) and, with several effects, also
 /// from the staged fit that adds them one at a time; the lowest cost wins. A fit that
 /// cannot lower the cost from its start although the linearised problem says it could
 /// is an error ([`DiagnoseError::NotFitted`]): a start value is never reported as a fit.

@@ -6,7 +6,7 @@
 //! robot, model kind and effects, run along the recorded commands) and reads and writes
 //! the contract's files through `ctr_formats`. `ctr-cli diagnose` / `calibrate` /
 //! `evaluate` and `ctr_py.diagnose` / `calibrate` / `evaluate` are thin calls of
-//! [`diagnose`], [`calibrate`] and [`evaluate`].
+//! [`diagnose()`], [`calibrate()`] and [`evaluate()`].
 //!
 //! 1. **Split** ([`Holdout`]): each run is cut into contiguous blocks and every
 //!    `every`-th block (staggered between runs) is held out; or whole runs are held out
@@ -62,7 +62,7 @@
 //! columns' errors and noise), `weighting` (their weight against the positions),
 //! `robust` (the median and its spread), [`locate`], `jacobian` (the fits'
 //! Jacobian), `candidates`
-//! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose`]),
+//! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose()`]),
 //! `empirical` (the generic basis and matching pursuit), `verify` (the checks of a
 //! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
 //! identifiability), `numbers` (a JSON value's numbers by key path),

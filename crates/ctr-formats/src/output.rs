@@ -214,7 +214,7 @@ impl AtomicFile {
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     ///
-    /// Every [`SYNC_BEHIND_BYTES`] written this way, the data so far starts being synced
+    /// Every `SYNC_BEHIND_BYTES` written this way, the data so far starts being synced
     /// to the disk on a thread of its own (one at a time), so that the sync of
     /// [`commit`](Self::commit) has only the rest left to wait for.
     pub fn write_through(&mut self, bytes: &[u8]) -> io::Result<()> {

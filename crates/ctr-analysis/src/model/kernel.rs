@@ -5,7 +5,7 @@
 //! the core applies (clearance kinks, sensor offset, registration) and gravity. Given a
 //! row's actual joints (joint offsets and time effects already applied, in file units,
 //! by [`super::RowModel`]) and its tip force, it asks the core one
-//! [`Request`](ctr_core::Request): the loaded solver where there is a load (gravity or
+//! [`ctr_core::Request`]: the loaded solver where there is a load (gravity or
 //! a force), the unloaded one otherwise, the tip as measured. `ctr-cli fk`, the
 //! simulation of recordings (and so the diagnosis) and the inverse kinematics all solve
 //! through it.

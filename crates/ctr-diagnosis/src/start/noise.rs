@@ -20,7 +20,7 @@ pub const OUTLIER_SIGMAS: f64 = 6.0;
 /// angular columns have their own beside it (`angular`), and the whole row's,
 /// `sqrt(3 sigma^2 + k sigma_w^2)` with `k` angular components (`sigma_w` the position
 /// noise they were weighted against: `crate::start::angular`), is
-/// [`Noise::weighted_rms`].
+/// `Noise::weighted_rms`.
 pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
     let mut d2 = Vec::new();
     for run in &rec.runs {

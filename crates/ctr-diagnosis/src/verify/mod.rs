@@ -6,7 +6,7 @@
 //! its held-out RMS; `sigma_n` the noise estimate's RMS. For a finding `c` with `k`
 //! parameters:
 //!
-//! 1. **It beats a generic correction of its size** ([`empirical`]: in the joints and
+//! 1. **It beats a generic correction of its size** ([`empirical`](crate::empirical): in the joints and
 //!    time, so that the registration, itself a map of the tip position, is not measured
 //!    against its own form), within the hybrid model. Let `K` be the size of generic
 //!    correction that cross-validation on the fit rows gives what `M` leaves. Take `c`
@@ -17,14 +17,14 @@
 //!    proxy nor sinks a true effect. Where `M` leaves nothing but noise on the held-out
 //!    rows (`h <= NOISE_TOLERANCE sigma_n`, then `K = 0`), the generic correction in
 //!    `c`'s place may also hold the linear maps of the modelled tip position that no
-//!    rigid motion makes ([`non_rigid`]: stretches and symmetric shears; rotations
+//!    rigid motion makes (`generic::non_rigid`: stretches and symmetric shears; rotations
 //!    and translations are the registration's, in the vocabulary): what a tracker's
 //!    scale or calibration error makes, and what an effect that reaches the noise
 //!    through the tip's pose (a sensor offset along the tip, which turns with it) can
 //!    mimic. `c` must then beat that correction of `k` terms by the same margin and,
-//!    where that correction too leaves only noise, beyond chance ([`clearly_lower`]: a
+//!    where that correction too leaves only noise, beyond chance ([`clearly_lower`](crate::paired::clearly_lower): a
 //!    paired test of the held-out squared errors over blocks of consecutive rows).
-//!    An effect whose own form is a map of the tip position ([`affine_in_tip`]: every
+//!    An effect whose own form is a map of the tip position (`generic::affine_in_tip`: every
 //!    parameter direction affine in the tip position, as a registration's) is not
 //!    measured against itself: it passes at the noise, the physics the hypothesis.
 //! 2. **Its parameters are constant, not proportional to something.** An effect
@@ -40,11 +40,11 @@
 //!    wrong, a registration where the tracker's scale is): outside the vocabulary.
 //!
 //! 3. **Its parameters are identified.** With every finding fitted together, the
-//!    covariance of [`uncertainty`] (the larger of the classical and the
+//!    covariance of [`uncertainty`](crate::uncertainty) (the larger of the classical and the
 //!    cluster-robust variances, so a structured residual widens it) must put the
 //!    user's nominal values outside the finding's joint 95 % region: the Wald
 //!    statistic `d^T Sigma^+ d` of its parameters' distance `d` from the nominal
-//!    exceeds the chi-square quantile of their rank ([`wald`]). A finding
+//!    exceeds the chi-square quantile of their rank (`identified::wald`). A finding
 //!    whose values the data cannot tell from the nominal is no finding, however much
 //!    it lowered the cost on the way.
 //!
