@@ -266,6 +266,13 @@ impl EffectId {
         }
     }
 
+    /// Whether parameter `i` is an angle whose bounds are where it wraps around (a
+    /// joint's rotation offset, within +/-180 deg): a value there is a place on the
+    /// circle, not a limit.
+    pub(crate) fn wraps(self, n: usize, i: usize) -> bool {
+        self == EffectId::JointOffset && i >= n
+    }
+
     /// Bounds of parameter `i`.
     pub(crate) fn bounds(self, n: usize, i: usize) -> (f64, f64) {
         let pairs = n.saturating_sub(1);

@@ -73,8 +73,7 @@ pub(crate) fn finish(
         (!verdict.explained).then_some(&verdict.correction),
     );
     if start.checks.present {
-        grade::by_intervals(&mut findings);
-        grade::by_bounds(&mut findings, &problem, &problem.read(&fitted));
+        grade::by_evidence(&mut findings, &problem, &fitted, assessment.as_ref());
     }
     let established = established_alone(&start, &problem, &fitted, &findings);
     // a finding its intervals lowered to predictive no longer explains anything

@@ -17,12 +17,12 @@
 //! linearly along the error there and has no curvature in that direction. Reweighting
 //! alone (`w_i J_i^T J_i`) would overstate that curvature, shorten every step along
 //! the outliers' errors and converge only linearly (on a real recording whose rows
-//! mostly lie beyond `c`, a third of the gain per step). The Jacobian of the predictions with respect to the
-//! parameters comes from the simulator by central differences at each parameter's
-//! natural scale (one-sided at a bound), its columns computed in parallel
-//! ([`crate::jacobian`]: without solving for the effects that leave the mechanics
-//! alone). Each step solves
-//! `(J^T W J + lambda D) d = -J^T W e`; when the step leaves the parameters' bounds it
+//! mostly lie beyond `c`, a third of the gain per step). The Jacobian of the
+//! predictions with respect to the parameters comes from the simulator by central
+//! differences at each parameter's natural scale (one-sided at a bound), its columns
+//! computed in parallel ([`crate::jacobian`]: without solving for the effects that
+//! leave the mechanics alone). Each step solves `(H + lambda D) d = -J^T W e` (`H`
+//! that curvature, `D` its diagonal); when the step leaves the parameters' bounds it
 //! is solved again as a box-constrained QP with clarabel.
 
 use crate::candidates::EffectId;
@@ -127,18 +127,19 @@ const STUCK_GAIN: f64 = 1e-6;
 
 /// How many times the Gauss-Newton model's decrease the rest of a fit may still gain
 /// before [`Problem::fit_until`] gives up on a target: the model is exact for a linear
-/// problem and near a minimum, and this margin covers its error further out.
+/// problem within the Huber threshold and near a minimum, and this margin covers its
+/// error further out (beyond the threshold, where the cost is linear along a row's
+/// error, the model promises more than a step gains: giving up later, never wrongly).
 const PROJECTED_GAIN_MARGIN: f64 = 4.0;
 
 /// The smallest change of the information criterion (`n ln(cost ratio)`, `n` the
-/// error components: twice a log-likelihood ratio, so 0.01 nats) a fit's step must
-/// gain for the fit to go on, when the step was taken at the damping of the step
-/// before (a step shortened by raised damping says nothing about the minimum). Near a
-/// minimum the robust Gauss-Newton steps shrink at least geometrically, so what is left
-/// is of the same order: below any decision taken on the cost (the criterion's penalty
-/// is `ln n`, about 8, per parameter; the learned discrepancy's likelihood stops at the
-/// same 0.01 nats). Measured on the real three-tube recording: 617 -> 430 Jacobians,
-/// every finding, grade and held-out RMS the same.
+/// error components: twice a log-likelihood ratio, so 0.01 nats) a fit's step, scaled
+/// up by its damping (`(1 + lambda)` times what it gained: about what the undamped step
+/// would have; a step shortened by damping says little about the minimum), must gain
+/// for the fit to go on. Near a minimum the robust Gauss-Newton steps shrink at least
+/// geometrically, so what is left is of the same order: below any decision taken on
+/// the cost (the criterion's penalty is `ln n`, about 8, per parameter; the learned
+/// discrepancy's likelihood stops at the same 0.01 nats).
 pub(crate) const CRITERION_RESOLUTION: f64 = 0.02;
 
 impl Problem<'_> {
@@ -297,7 +298,7 @@ impl Problem<'_> {
 
     /// [`fit`](Self::fit) that gives up when the cost cannot come below `target`
     /// (mm^2): at each Jacobian, the weighted Gauss-Newton model's decrease
-    /// `g^T H^-1 g` (`H = J^T W J`, `g = J^T W e`) is what the linearised problem can
+    /// `g^T H^-1 g` (`H` the robust curvature of [`normal_equations`], `g = J^T W e`) is what the linearised problem can
     /// still gain; when the cost less [`PROJECTED_GAIN_MARGIN`] times that stays above
     /// the target, going on would only confirm that it is not reached.
     pub fn fit_until(&self, x0: &[f64], max_iter: usize, target: Option<f64>) -> Option<Fitted> {
@@ -360,8 +361,8 @@ impl Problem<'_> {
     /// (largest diagonal `dmax`): the damping `lambda` raised tenfold until a step
     /// within `bounds` lowers the cost (at most 12 tries), then eased threefold.
     /// Whether the fit goes on: a step was taken and it was not negligible (relative
-    /// decrease below `1e-7`, every parameter moved less than `1e-3` of its scale, or,
-    /// taken at the damping of the step before, a gain below [`CRITERION_RESOLUTION`]);
+    /// decrease below `1e-7`, every parameter moved less than `1e-3` of its scale, or a
+    /// gain, scaled up by the damping, below [`CRITERION_RESOLUTION`]);
     /// `None` when no step lowered the cost.
     fn damped_step(
         &self,
@@ -373,7 +374,7 @@ impl Problem<'_> {
         lambda: &mut f64,
     ) -> Option<bool> {
         let np = now.x.len();
-        for attempt in 0..12 {
+        for _ in 0..12 {
             let mut a = h.clone();
             for j in 0..np {
                 a[(j, j)] += *lambda * h[(j, j)].max(1e-9 * dmax);
@@ -392,10 +393,11 @@ impl Problem<'_> {
                         .all(|(j, d)| d.abs() < 1e-3 * self.scale(j).0);
                     let steps = now.steps + 1;
                     *now = Iterate { steps, ..next };
-                    *lambda = (*lambda / 3.0).max(1e-9);
-                    // the information criterion's change, n ln(cost ratio)
+                    // the information criterion's change, n ln(cost ratio), and what an
+                    // undamped step would have gained, about (1 + lambda) times it
                     let gain = -(now.e.len() as f64) * (1.0 - rel).ln();
-                    let creeping = attempt == 0 && gain < CRITERION_RESOLUTION;
+                    let creeping = gain * (1.0 + *lambda) < CRITERION_RESOLUTION;
+                    *lambda = (*lambda / 3.0).max(1e-9);
                     return Some(!(rel < 1e-7 || small || creeping));
                 }
             }

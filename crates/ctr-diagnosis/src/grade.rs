@@ -26,6 +26,8 @@ use crate::candidates::EffectId;
 use crate::fit::Problem;
 use crate::report::numbers::intervals;
 use crate::report::{Finding, Grade};
+use crate::uncertainty::Assessment;
+use ctr_analysis::model::ModelSpec;
 
 /// The value of a parameter of an effect's table in the robot file (its key) that means
 /// the effect is not there; `None` for a parameter without one (a clearance's peak
@@ -103,33 +105,64 @@ pub(crate) fn by_intervals(findings: &mut [Finding]) {
 }
 
 /// How close to a bound of its fit a parameter counts as on it, in its natural steps
-/// ([`Problem::scale`]): the steps land on a bound exactly (clamped), so this only
-/// absorbs rounding.
-const ON_BOUND_STEPS: f64 = 1e-6;
+/// ([`Problem::scale`]): the QP's interior-point steps stop just inside a bound.
+const ON_BOUND_STEPS: f64 = 1e-3;
 
 /// The effects of `problem` with a parameter at `x` on a bound of its fit other than
 /// the value that means "not there" (0 in every fitted parameter: an offset, a play, a
 /// lag, the log of a factor): the data pushed it as far as the fit lets it go (a
-/// stiffness a seventh of the catalogue's, gravity at five times the earth's).
-fn on_bounds(problem: &Problem, x: &[f64]) -> Vec<EffectId> {
+/// stiffness a seventh of the catalogue's, gravity at five times the earth's). Not
+/// counted: an angle whose bounds are where it wraps (a rotation offset at +/-180 deg
+/// is a place on the circle, not a limit), and a parameter not identified alone
+/// (`unidentified`, where known: its value is not what the data say).
+fn on_bounds(problem: &Problem, x: &[f64], unidentified: Option<&[bool]>) -> Vec<EffectId> {
+    let n = problem.n_tubes();
     let mut out = Vec::new();
-    for (j, &v) in x.iter().enumerate() {
-        let (step, (lo, hi)) = problem.scale(j);
-        let on = |b: f64| b != 0.0 && b.is_finite() && (v - b).abs() <= ON_BOUND_STEPS * step;
-        let effect = problem.effect_of(j);
-        if (on(lo) || on(hi)) && !out.contains(&effect) {
-            out.push(effect);
+    let mut at = 0;
+    for &b in &problem.blocks {
+        let len = problem.block_len(b);
+        let on_bound = (at..at + len).any(|j| {
+            let (step, (lo, hi)) = problem.scale(j);
+            let on = |bound: f64| {
+                bound != 0.0 && bound.is_finite() && (x[j] - bound).abs() <= ON_BOUND_STEPS * step
+            };
+            let counted = !b.wraps(n, j - at) && !unidentified.is_some_and(|u| u[j]);
+            counted && (on(lo) || on(hi))
+        });
+        if on_bound {
+            out.push(b);
         }
+        at += len;
     }
     out
 }
 
+/// Grades the established `findings` by their intervals ([`by_intervals`]) and their
+/// fit's bounds ([`by_bounds`]) at `fitted`, `problem`'s model, as `assessment` (when
+/// computed) saw it.
+pub(crate) fn by_evidence(
+    findings: &mut [Finding],
+    problem: &Problem,
+    fitted: &ModelSpec,
+    assessment: Option<&Assessment>,
+) {
+    by_intervals(findings);
+    let unidentified = assessment.map(|a| a.unidentified.as_slice());
+    by_bounds(findings, problem, &problem.read(fitted), unidentified);
+}
+
 /// Lowers to predictive every established finding whose effect has a parameter at `x`
-/// on a bound of `problem`'s fit ([`on_bounds`]): the fit's value is not a minimum the
-/// data place inside the plausible range, its interval is cut by the bound, and an
-/// effect pushed that far most likely stands in for something else.
-pub(crate) fn by_bounds(findings: &mut [Finding], problem: &Problem, x: &[f64]) {
-    lower_on_bound(findings, &on_bounds(problem, x));
+/// on a bound of `problem`'s fit ([`on_bounds`]; `unidentified` the parameters the
+/// data do not identify alone, where known): the fit's value is not a minimum the data
+/// place inside the plausible range, its interval is cut by the bound, and an effect
+/// pushed that far most likely stands in for something else.
+fn by_bounds(
+    findings: &mut [Finding],
+    problem: &Problem,
+    x: &[f64],
+    unidentified: Option<&[bool]>,
+) {
+    lower_on_bound(findings, &on_bounds(problem, x, unidentified));
 }
 
 /// [`by_bounds`] for the effects `on_bound`.
@@ -237,5 +270,54 @@ mod tests {
             Grade::Established,
             "another effect on a bound"
         );
+    }
+
+    #[test]
+    fn on_a_bound_counts_limits_not_wraps_nor_unidentified() {
+        use crate::synth::{record, CommandedRun, SynthSpec};
+        let spec = ctr_formats::RobotSpec::from_toml_str(
+            "[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\nlength_mm = 200.0\n\
+             curved_length_mm = 80.0\ncurvature_radius_mm = 100.0\n\
+             youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n",
+            "one.toml",
+        )
+        .unwrap();
+        let model = ModelSpec::from_spec(&spec);
+        let run = CommandedRun {
+            label: "turn".into(),
+            joints: vec![vec![100.0, 0.0], vec![100.0, 10.0]],
+        };
+        let rec = record(&model, &[run], &SynthSpec::default())
+            .unwrap()
+            .recording;
+        let problem = Problem {
+            base: model,
+            blocks: vec![EffectId::Stiffness, EffectId::JointOffset],
+            rec: &rec,
+            rows: vec![0, 1],
+            huber_mm: 1.0,
+            threads: 1,
+            clearance_table: None,
+        };
+        let (_, (ln_lo, _)) = problem.scale(0);
+        let (_, (_, feed_hi)) = problem.scale(1);
+        // x: ln stiffness factor, feed offset, rotation offset
+        let on = |x: [f64; 3], unidentified: Option<&[bool]>| on_bounds(&problem, &x, unidentified);
+        assert_eq!(on([0.1, 0.2, 30.0], None), vec![]);
+        assert_eq!(on([ln_lo, 0.2, 30.0], None), vec![EffectId::Stiffness]);
+        assert_eq!(
+            on([ln_lo + 1e-6, 0.2, 30.0], None),
+            vec![EffectId::Stiffness],
+            "just inside"
+        );
+        assert_eq!(on([ln_lo + 0.1, 0.2, 30.0], None), vec![]);
+        assert_eq!(on([0.1, feed_hi, 30.0], None), vec![EffectId::JointOffset]);
+        assert_eq!(
+            on([0.1, 0.2, 180.0], None),
+            vec![],
+            "a rotation wraps there"
+        );
+        let unidentified = [true, false, false];
+        assert_eq!(on([ln_lo, 0.2, 30.0], Some(&unidentified)), vec![]);
     }
 }

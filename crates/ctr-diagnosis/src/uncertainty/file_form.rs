@@ -10,9 +10,10 @@ use crate::report::prose::parameters;
 use nalgebra::{DMatrix, DVector};
 use serde_json::Value;
 
-/// A whole turn, deg: an angle's interval this wide holds every angle (open).
-const FULL_TURN_DEG: f64 = 360.0;
-/// Relative slack on [`FULL_TURN_DEG`] for the forward-difference derivative of an angle
+/// Half a turn, deg: an angle's interval reaching this far from its value on a side
+/// holds every angle (open).
+const HALF_TURN_DEG: f64 = 180.0;
+/// Relative slack on [`HALF_TURN_DEG`] for the forward-difference derivative of an angle
 /// that is the parameter itself (1 to rounding).
 const TURN_TOLERANCE: f64 = 1e-6;
 
@@ -88,14 +89,11 @@ impl Assessment {
         let (at, base) = (form.at, form.base[o]);
         match deps {
             [] => [Some(base), Some(base)],
-            // an angle free over a whole turn: its end points would unwrap onto one
-            // another and print an interval from one side of the circle to the value
-            [j] if form.degrees[o]
-                && (self.interval(at + j).1 - self.interval(at + j).0) * form.g[(o, *j)].abs()
-                    >= FULL_TURN_DEG * (1.0 - TURN_TOLERANCE) =>
-            {
-                [None, None]
-            }
+            // an angle with an end half a turn or more from its value: unwrapped to
+            // within half a turn, that end would fold onto the other side of the circle
+            // and print an interval from there to the value (a rotation offset free over
+            // a whole turn, or a very wide one): every angle is possible, open
+            [j] if form.degrees[o] && self.reaches_half_turn(form, o, at + j) => [None, None],
             [j] => {
                 let (lo, hi) = self.interval(at + j);
                 let mut ends = vec![base];
@@ -123,6 +121,14 @@ impl Assessment {
                 [finite(base - half), finite(base + half)]
             }
         }
+    }
+
+    /// Whether output `o`, an angle depending on parameter `j` alone, has an end of
+    /// `j`'s interval half a turn or more from its value (to first order).
+    fn reaches_half_turn(&self, form: &FileForm, o: usize, j: usize) -> bool {
+        let (lo, hi) = self.interval(j);
+        let reach = (self.x[j] - lo).max(hi - self.x[j]) * form.g[(o, j - form.at)].abs();
+        reach >= HALF_TURN_DEG * (1.0 - TURN_TOLERANCE)
     }
 
     /// The interval of output `o` (depending on the block's parameters `deps`) with
