@@ -140,7 +140,7 @@ const PROJECTED_GAIN_MARGIN: f64 = 4.0;
 /// geometrically, so what is left is of the same order: below any decision taken on
 /// the cost (the criterion's penalty is `ln n`, about 8, per parameter; the learned
 /// discrepancy's likelihood stops at the same 0.01 nats).
-pub(crate) const CRITERION_RESOLUTION: f64 = 0.02;
+const CRITERION_RESOLUTION: f64 = 0.02;
 
 impl Problem<'_> {
     pub fn n_tubes(&self) -> usize {

@@ -362,8 +362,9 @@ impl Bound<'_> {
     }
 
     /// The joint columns (into `joints`, as [`fk_jacobian`](Self::fk_jacobian)'s) and
-    /// the scale columns (into `scales`, [`scale_columns`]) asked for, at `kept`, the row `actual` solved by [`fk_kept`](Self::fk_kept) without a tip
-    /// force by a solver of this model (any, warm or not: nothing is solved again).
+    /// the scale columns (into `scales`, [`scale_columns`]) asked for, at `kept`, the
+    /// row `actual` solved by [`fk_kept`](Self::fk_kept) without a tip force by a solver
+    /// of this model (any, warm or not: nothing is solved again).
     ///
     /// # Panics
     /// If `actual.len()` is not twice the tube count, or `kept` is of another tube count.
