@@ -469,26 +469,44 @@ fn held_at_blocked(bounds: &[(f64, f64)], blocked: &[[bool; 2]], x: &[f64]) -> V
 
 /// The robust cost's normal equations `H = sum_i J_i^T W_i J_i`, `g = J^T W e` of
 /// Jacobian `jac`, weights `w` (one per 3 rows of `jac`) and errors `e`, over `np`
-/// parameters: `W_i = I` within the Huber threshold (`w_i = 1`), `w_i (I - u_i u_i^T)`
-/// beyond it, `u_i` the row's error direction (see the module doc).
+/// parameters ([`robust_information`] and the weighted gradient).
 fn normal_equations(
     jac: &DMatrix<f64>,
     w: &[f64],
     e: &[f64],
     np: usize,
 ) -> (DMatrix<f64>, DVector<f64>) {
-    let mut h = DMatrix::<f64>::zeros(np, np);
     let mut g = DVector::<f64>::zeros(np);
     for (row, wr) in w.iter().enumerate() {
         for a in 0..3 {
             let i = 3 * row + a;
-            let ji = jac.row(i);
+            g += jac.row(i).transpose() * (wr * e[i]);
+        }
+    }
+    (robust_information(jac, w, e, np), g)
+}
+
+/// The Gauss-Newton curvature of Huber's cost, `H = sum_i J_i^T W_i J_i`, of Jacobian
+/// `jac`, weights `w` (one per 3 rows of `jac`) and errors `e`, over `np` parameters:
+/// `W_i = I` within the threshold (`w_i = 1`), `w_i (I - u_i u_i^T)` beyond it, `u_i`
+/// the row's error direction (the cost grows only linearly along it; see the module
+/// doc). The fit's steps and the intervals' information ([`crate::uncertainty`]) both
+/// use it.
+pub(crate) fn robust_information(
+    jac: &DMatrix<f64>,
+    w: &[f64],
+    e: &[f64],
+    np: usize,
+) -> DMatrix<f64> {
+    let mut h = DMatrix::<f64>::zeros(np, np);
+    for (row, wr) in w.iter().enumerate() {
+        for a in 0..3 {
+            let ji = jac.row(3 * row + a);
             for c1 in 0..np {
                 let v = wr * ji[c1];
                 if v == 0.0 {
                     continue;
                 }
-                g[c1] += v * e[i];
                 for c2 in c1..np {
                     h[(c1, c2)] += v * ji[c2];
                 }
@@ -517,7 +535,7 @@ fn normal_equations(
             h[(c1, c2)] = h[(c2, c1)];
         }
     }
-    (h, g)
+    h
 }
 
 /// The Gauss-Newton model's decrease `g^T H^-1 g` of the weighted sum of squares

@@ -3,7 +3,10 @@
 //!
 //! At the fitted parameters `x` (every finding's block together, on the fit rows), let
 //! `J` be the Jacobian of the predictions (3 per row), `w` the robust fit's weights
-//! and `e` the errors. The information matrix is `H = J^T W J`; scaled to a unit
+//! and `e` the errors. The information matrix is the robust cost's own curvature,
+//! `H = sum_i J_i^T W_i J_i` with `W_i = I` for a row within the Huber threshold and
+//! `w_i (I - u_i u_i^T)` beyond it (`u_i` its error's direction, along which the cost
+//! grows only linearly: [`robust_information`], the fit's curvature too); scaled to a unit
 //! diagonal, `S = D H D` with `D = diag(H_jj)^(-1/2)`, its eigenvalues say what the
 //! data identify:
 //!
@@ -44,7 +47,7 @@ pub(crate) mod attach;
 pub(crate) mod suggest;
 
 use crate::candidates::{EffectId, Label};
-use crate::fit::Problem;
+use crate::fit::{robust_information, Problem};
 use crate::quantiles::t975;
 use crate::report::numbers::sig;
 use crate::report::Correlated;
@@ -68,6 +71,9 @@ pub const CORRELATED_ABOVE: f64 = 0.9;
 /// (sets the clusters' length).
 pub const INDEPENDENT_BELOW: f64 = 0.1;
 
+/// Cosine between a combination and a direction not identified below which the
+/// combination counts as orthogonal to it (identified).
+const ORTHOGONAL_WITHIN: f64 = 1e-3;
 /// Fewest rows in a cluster.
 const MIN_CLUSTER_ROWS: usize = 5;
 /// Longest correlation length looked for, rows.
@@ -134,7 +140,7 @@ pub(crate) struct Assessment {
     steps: Vec<f64>,
     /// Covariance on the identified directions.
     pub cov: DMatrix<f64>,
-    /// The information `J^T W J` of the fit rows.
+    /// The information (the robust cost's curvature) of the fit rows.
     pub information: DMatrix<f64>,
     /// Whether each parameter takes part in a direction not identified.
     pub unidentified: Vec<bool>,
@@ -254,19 +260,6 @@ fn correlation_length(r: &[[f64; 3]], segs: &[std::ops::Range<usize>]) -> usize 
         }
     }
     MAX_LAG_ROWS
-}
-
-/// The information `H = J^T W J` of the fit rows (`w` one weight per 3 rows of
-/// `jac`, over `np` parameters).
-fn information(jac: &DMatrix<f64>, w: &[f64], np: usize) -> DMatrix<f64> {
-    let mut h = DMatrix::<f64>::zeros(np, np);
-    for (row, wr) in w.iter().enumerate() {
-        for a in 0..3 {
-            let ji = jac.row(3 * row + a);
-            h += (ji.transpose() * ji) * *wr;
-        }
-    }
-    h
 }
 
 /// The classical weighted residual variance per component of the `rows` fit rows,
@@ -399,7 +392,8 @@ fn tied_to_nominal(
 fn method_words(clusters: usize, len: usize) -> String {
     format!(
         "95 % intervals x +/- t(0.975, {dof}) sd, sd the larger of the classical \
-         (weighted residual variance x pseudo-inverse of J^T W J) and the cluster-robust \
+         (weighted residual variance x pseudo-inverse of the robust cost's curvature J^T W J, \
+         W = w (I - u u^T) for a row beyond the Huber threshold, u its error's direction) and the cluster-robust \
          sandwich over {clusters} blocks of {len} consecutive fit rows (twice the \
          residual's correlation length), J the Jacobian of the robust fit on the fit \
          rows; clipped to the fit's bounds; file-form values by their parameter's end \
@@ -436,7 +430,7 @@ impl Assessment {
         let e = problem.errors(&p0);
         let (cost, w) = problem.cost(&e);
         let jac = without_negligible_columns(problem.jacobian(x, &p0)?, problem);
-        let h = information(&jac, &w, np);
+        let h = robust_information(&jac, &w, &e, np);
         let (h_pinv, null_scaled, d) = pseudo_inverse(&h);
         let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
         let identified = np - null_scaled.len();
@@ -529,6 +523,10 @@ impl Assessment {
                 let mut a = DVector::<f64>::zeros(u.len());
                 a[j] = 1.0;
                 a[r] = -ratio;
+                if !self.identifies(&a) {
+                    // it moves along another direction the data do not see: not identified
+                    continue;
+                }
                 let value = a.dot(&DVector::from_column_slice(&self.x));
                 let at_nominal = a.dot(&DVector::from_column_slice(&self.nominal));
                 let one_effect = self.effects[j] == self.effects[r];
@@ -581,6 +579,17 @@ impl Assessment {
         out
     }
 
+    /// Whether the data identify the combination `a . x`: `a` orthogonal (within
+    /// [`ORTHOGONAL_WITHIN`] of its and the direction's sizes) to every direction the
+    /// data do not see. One built across a direction can still lie along another that
+    /// shares its parameters; its variance there is the pseudo-inverse's zero, not a
+    /// measurement.
+    fn identifies(&self, a: &DVector<f64>) -> bool {
+        self.null
+            .iter()
+            .all(|u| a.dot(u).abs() <= ORTHOGONAL_WITHIN * a.norm() * u.norm())
+    }
+
     /// What the data do not identify, in words (one sentence per direction, with the
     /// combinations across it not listed before).
     pub fn statements(&self, combos: &[Combination]) -> Vec<String> {
@@ -616,3 +625,6 @@ impl Assessment {
         out
     }
 }
+
+#[cfg(test)]
+mod tests;
