@@ -31,6 +31,7 @@
 //! ```
 
 pub mod batch;
+pub mod contact;
 pub mod discrepancy;
 pub mod ik;
 pub mod job;

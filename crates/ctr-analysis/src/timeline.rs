@@ -12,7 +12,12 @@
 //!    commanded samples, shifted to `t_j + tau`) enter it in order before the row's own
 //!    value. Its memory starts centred at the run's first command.
 //!
-//! Joints here are in file order and units (`s1_mm, theta1_deg, ...`).
+//! Joints here are in file order and units (`s1_mm, theta1_deg, ...`). A rotation
+//! play's half-width is the constant `rotation_play_deg` plus what the contact moment
+//! winds up at the row's delayed joints ([`crate::contact`]).
+
+use crate::contact::Contact;
+use ctr_formats::AnyRobot;
 
 /// Time-dependent effect parameters for one robot (file units).
 ///
@@ -31,18 +36,26 @@ pub struct TimeEffects {
     pub rotation_play_deg: Vec<f64>,
     /// Half-width of the feed play of each tube, mm.
     pub feed_play_mm: Vec<f64>,
+    /// The seed's friction coefficient of each neighbouring pair: the rotation play
+    /// grows by what the contact moment winds up ([`crate::contact`]).
+    pub rotation_friction_coefficient: Vec<f64>,
+    /// The robot's terms of that growth (`None`: no coefficient).
+    pub contact: Option<Contact>,
 }
 
 impl TimeEffects {
     /// The effects of a robot file's `[model.effects]` that act along a run's time
-    /// series, for a robot of `n` tubes.
+    /// series, for `robot` (the scaled tubes: the contact friction's moments use them).
     ///
     /// ```
-    /// use ctr_formats::{Effects, Latency};
+    /// use ctr_formats::{AnyRobot, Effects, Latency};
+    /// let t = ctr_core::TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33);
+    /// let robot = AnyRobot::new(&[t]).unwrap();
     /// let e = Effects { latency: Some(Latency { tau_s: 0.2 }), ..Default::default() };
-    /// assert_eq!(ctr_analysis::timeline::TimeEffects::of(&e, 2).latency_s, 0.2);
+    /// assert_eq!(ctr_analysis::timeline::TimeEffects::of(&e, &robot).latency_s, 0.2);
     /// ```
-    pub fn of(effects: &ctr_formats::Effects, n: usize) -> Self {
+    pub fn of(effects: &ctr_formats::Effects, robot: &AnyRobot) -> Self {
+        let n = robot.n_tubes();
         let mut t = TimeEffects::none(n);
         if let Some(o) = &effects.joint_offset {
             for i in 0..n {
@@ -65,6 +78,10 @@ impl TimeEffects {
             for (i, w) in f.feed_play_mm.iter().enumerate().take(n) {
                 t.feed_play_mm[i] = *w;
             }
+            if f.rotation_friction_coefficient.iter().any(|&m| m > 0.0) {
+                t.rotation_friction_coefficient = f.rotation_friction_coefficient.clone();
+                t.contact = Some(Contact::of(robot));
+            }
         }
         t
     }
@@ -81,6 +98,8 @@ impl TimeEffects {
             latency_s: 0.0,
             rotation_play_deg: vec![0.0; n.saturating_sub(1)],
             feed_play_mm: vec![0.0; n],
+            rotation_friction_coefficient: vec![0.0; n.saturating_sub(1)],
+            contact: None,
         }
     }
 }
@@ -154,8 +173,12 @@ pub fn actual_joints_flat(t_s: &[f64], q: &[f64], width: usize, effects: &TimeEf
         .map(|(i, v)| v + effects.joint_offset.get(i % width).copied().unwrap_or(0.0))
         .collect();
     let tau = effects.latency_s;
+    let contact = effects.contact.as_ref();
     let friction = effects.rotation_play_deg.iter().any(|&w| w > 0.0)
-        || effects.feed_play_mm.iter().any(|&w| w > 0.0);
+        || effects.feed_play_mm.iter().any(|&w| w > 0.0)
+        || contact.is_some();
+    let mut half_width = effects.rotation_play_deg.clone();
+    let mut grown = vec![0.0; half_width.len()];
     let mut rotation = vec![0.0; n.saturating_sub(1)];
     let mut feed = vec![0.0; n];
     let (mut s, mut theta) = (vec![0.0; n], vec![0.0; n]);
@@ -175,11 +198,26 @@ pub fn actual_joints_flat(t_s: &[f64], q: &[f64], width: usize, effects: &TimeEf
     }
     let mut step = |row: &[f64], out: &mut [f64]| {
         split(row, &mut s, &mut theta);
+        if let Some(c) = contact {
+            c.half_width_deg(
+                &effects.rotation_friction_coefficient,
+                &s,
+                &theta,
+                &mut grown,
+            );
+            for ((w, play), g) in half_width
+                .iter_mut()
+                .zip(&effects.rotation_play_deg)
+                .zip(&grown)
+            {
+                *w = play + g;
+            }
+        }
         if friction {
             ctr_core::friction::play_step(
                 &mut rotation,
                 &mut feed,
-                &effects.rotation_play_deg,
+                &half_width,
                 &effects.feed_play_mm,
                 &mut s,
                 &mut theta,

@@ -36,6 +36,7 @@ fn setting() -> (ModelSpec, Recording, Vec<usize>) {
     });
     e.latency = Some(Latency { tau_s: 0.05 });
     e.friction = Some(Friction {
+        rotation_friction_coefficient: vec![],
         rotation_play_deg: vec![1.5, 2.5],
         feed_play_mm: vec![0.0, 0.0, 0.2],
     });

@@ -47,6 +47,7 @@ fn benches() -> Vec<Bench> {
     long.long = true;
     long.effects.latency = Some(Latency { tau_s: 0.3 });
     long.effects.friction = Some(Friction {
+        rotation_friction_coefficient: vec![],
         rotation_play_deg: vec![4.0, 4.0],
         feed_play_mm: vec![],
     });
@@ -64,6 +65,7 @@ fn benches() -> Vec<Bench> {
         }],
     );
     drift_friction.effects.friction = Some(Friction {
+        rotation_friction_coefficient: vec![],
         rotation_play_deg: vec![6.0],
         feed_play_mm: vec![],
     });

@@ -5,7 +5,7 @@
 //! | effect | parameters (units) |
 //! |---|---|
 //! | `torsion` | none: the base model becomes the torsion model |
-//! | `friction` | rotation play half-width per neighbouring pair (deg), feed play per tube (mm) |
+//! | `friction` | rotation play half-width per neighbouring pair (deg), feed play per tube (mm), the seed's friction coefficient per pair (the play's growth with the contact moment, `ctr_analysis::contact`; this project's extension) |
 //! | `clearance` | per pair: largest kink (deg) and the relative angle where it peaks (deg) |
 //! | `gravity` | gravity vector in W (m/s^2): direction and size (absorbs a density error) |
 //! | `registration` | translation (mm) and rotation vector (deg) of the tracker frame |
@@ -177,7 +177,7 @@ impl EffectId {
         let pairs = n.saturating_sub(1);
         match self {
             EffectId::Torsion => 0,
-            EffectId::Friction => pairs + n,
+            EffectId::Friction => 2 * pairs + n,
             EffectId::Clearance => 2 * pairs,
             EffectId::Gravity => 3,
             EffectId::Registration => 6,
@@ -203,7 +203,17 @@ impl EffectId {
             EffectId::Friction if i < pairs => {
                 plain(format!("rotation play of tubes {}-{}", i + 1, i + 2), "deg")
             }
-            EffectId::Friction => plain(format!("feed play of tube {}", i - pairs + 1), "mm"),
+            EffectId::Friction if i < pairs + n => {
+                plain(format!("feed play of tube {}", i - pairs + 1), "mm")
+            }
+            EffectId::Friction => plain(
+                format!(
+                    "friction coefficient of tubes {}-{}",
+                    i - pairs - n + 1,
+                    i - pairs - n + 2
+                ),
+                "",
+            ),
             EffectId::Clearance if i.is_multiple_of(2) => plain(
                 format!("clearance kink of tubes {}-{}", i / 2 + 1, i / 2 + 2),
                 "deg",
@@ -245,8 +255,10 @@ impl EffectId {
             EffectId::Friction => {
                 if i < pairs {
                     0.05
-                } else {
+                } else if i < pairs + n {
                     0.005
+                } else {
+                    FRICTION_COEFFICIENT_STEP
                 }
             }
             EffectId::Clearance => 0.05,
@@ -282,8 +294,10 @@ impl EffectId {
             EffectId::Friction => {
                 if i < pairs {
                     (0.0, MAX_ROTATION_PLAY_DEG)
-                } else {
+                } else if i < pairs + n {
                     (0.0, MAX_FEED_PLAY_MM)
+                } else {
+                    (0.0, MAX_FRICTION_COEFFICIENT)
                 }
             }
             EffectId::Clearance => {
@@ -355,9 +369,10 @@ impl EffectId {
         };
         match self {
             EffectId::Torsion => vec![],
-            EffectId::Friction => e.friction.as_ref().map_or(vec![0.0; pairs + n], |f| {
+            EffectId::Friction => e.friction.as_ref().map_or(vec![0.0; 2 * pairs + n], |f| {
                 let mut x = or0(&f.rotation_play_deg, pairs);
                 x.extend(or0(&f.feed_play_mm, n));
+                x.extend(or0(&f.rotation_friction_coefficient, pairs));
                 x
             }),
             EffectId::Clearance => e.clearance.as_ref().map_or(vec![0.0; 2 * pairs], |c| {
@@ -408,9 +423,16 @@ impl EffectId {
         match self {
             EffectId::Torsion => m.model = Model::Torsion,
             EffectId::Friction => {
+                let coefficient = &x[pairs + n..2 * pairs + n];
                 e.friction = Some(Friction {
                     rotation_play_deg: x[..pairs].to_vec(),
                     feed_play_mm: x[pairs..pairs + n].to_vec(),
+                    // none written where none is fitted: the file stays the contract's
+                    rotation_friction_coefficient: if coefficient.iter().any(|&m| m != 0.0) {
+                        coefficient.to_vec()
+                    } else {
+                        Vec::new()
+                    },
                 })
             }
             EffectId::Clearance => {
@@ -487,6 +509,12 @@ pub(crate) struct Label {
 const MAX_ROTATION_PLAY_DEG: f64 = 45.0;
 /// Largest feed play half-width, mm.
 const MAX_FEED_PLAY_MM: f64 = 5.0;
+/// Largest friction coefficient `mu'` of the contact moment (dimensionless; on a
+/// nitinol robot of usual size, 0.5 winds up tens of degrees).
+const MAX_FRICTION_COEFFICIENT: f64 = 0.5;
+/// Finite-difference step of a friction coefficient (a few hundredths of a degree of
+/// play on a nitinol robot of usual size).
+const FRICTION_COEFFICIENT_STEP: f64 = 5e-4;
 /// Largest clearance kink, deg.
 const MAX_KINK_DEG: f64 = 20.0;
 /// Largest gravity component, m/s^2 (three times standard gravity: a density error).

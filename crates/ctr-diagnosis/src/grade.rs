@@ -44,6 +44,7 @@ pub fn absent_value(key: &str) -> Option<f64> {
         "factor" | "radius_factor" => Some(1.0),
         "rotation_play_deg"
         | "feed_play_mm"
+        | "rotation_friction_coefficient"
         | "max_deflection_deg"
         | "tau_s"
         | "translation_mm"

@@ -336,6 +336,7 @@ fn clearance(max_deg: &[f64], peak_deg: &[f64]) -> Clearance {
 
 fn friction(play_deg: &[f64]) -> Friction {
     Friction {
+        rotation_friction_coefficient: vec![],
         rotation_play_deg: play_deg.to_vec(),
         feed_play_mm: Vec::new(),
     }
@@ -380,6 +381,20 @@ blind_tests! {
     torsion_nitinol3: "nitinol3", seed 22, torsion();
     friction_liu2023: "liu2023", seed 23 { friction: friction(&[5.0]) };
     friction_nitinol3: "nitinol3", seed 24 { friction: friction(&[3.0, 6.0]) };
+    // the seed's friction: the plays grow with the contact moment (no constant part)
+    contact_friction_nitinol3: "nitinol3", seed 60 {
+        friction: Friction {
+            rotation_friction_coefficient: vec![0.02, 0.03],
+            ..Friction::default()
+        },
+    };
+    contact_friction_liu2023: "liu2023", seed 61 {
+        friction: Friction {
+            rotation_friction_coefficient: vec![0.03],
+            rotation_play_deg: vec![1.0],
+            ..Friction::default()
+        },
+    };
     clearance_nitinol2: "nitinol2", seed 25 { clearance: clearance(&[2.5], &[60.0]) };
     clearance_liu2023: "liu2023", seed 26 { clearance: clearance(&[2.0], &[300.0]) };
     gravity_liu2023: "liu2023", seed 27, sigma(GRAVITY_NOISE_SIGMA_MM) {

@@ -128,6 +128,7 @@ fn physics_beside_an_effect_outside_the_vocabulary_gets_two_answers() {
     let mut world = user.clone();
     world.effects.latency = Some(Latency { tau_s: 0.4 });
     world.effects.friction = Some(Friction {
+        rotation_friction_coefficient: vec![],
         rotation_play_deg: vec![5.0],
         feed_play_mm: vec![],
     });

@@ -56,6 +56,7 @@ fn truth_effects(world: &Value, n: usize) -> Effects {
     }
     if let Some(c) = world.get("friction") {
         out.friction = Some(Friction {
+            rotation_friction_coefficient: vec![],
             rotation_play_deg: vec![f(&c["rotation_play_half_width_deg"]); n - 1],
             feed_play_mm: vec![],
         });

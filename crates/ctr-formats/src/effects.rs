@@ -12,6 +12,8 @@
 //! [model.effects.friction]          # play operators (hysteresis)
 //! rotation_play_deg = [8.0]         # half-width per neighbouring pair, theta_{i+1} - theta_i
 //! feed_play_mm = [0.0, 0.0]         # half-width per tube (optional, default zeros)
+//! rotation_friction_coefficient = [0.0]  # per pair (optional): the seed's mu', adds
+//!                                   # mu' |M| (wind-up compliance) to the half-width
 //!
 //! [model.effects.clearance]         # kink where tube i+1 leaves tube i, per pair
 //! max_deflection_deg = [2.5]        # delta = max (1 + cos(phi - peak)) / 2
@@ -119,7 +121,7 @@ pub struct Latency {
 }
 
 /// `[model.effects.friction]`: play operators on relative rotations and feeds.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Friction {
     /// Half-width of the play of `theta_{i+1} - theta_i`, per neighbouring pair, degrees.
@@ -128,6 +130,13 @@ pub struct Friction {
     /// Half-width of the feed play per tube, mm (default zeros).
     #[serde(default)]
     pub feed_play_mm: Vec<f64>,
+    /// The seed's boundary friction coefficient `mu'` per neighbouring pair
+    /// (dimensionless, default zeros; this project's extension): the rotation play's
+    /// half-width grows by `mu' |M|` times the pair's torsional compliance, `M` the
+    /// bending moment the outer tube of the pair carries at its tip (Liu et al. 2023,
+    /// eq. 10; `ctr_analysis::timeline`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rotation_friction_coefficient: Vec<f64>,
 }
 
 /// `[model.effects.clearance]`: per neighbouring pair, a cosine profile
@@ -343,11 +352,14 @@ fn check_joint_offset(o: &JointOffset, n: usize) -> Result<(), EffectProblem> {
     Ok(())
 }
 
-/// `friction` of a robot of `n` tubes: a rotation play per neighbouring pair, feed
-/// plays per tube (optional), none negative.
+/// `friction` of a robot of `n` tubes: a rotation play per neighbouring pair (optional
+/// beside the contact's coefficients, one per pair), feed plays per tube (optional), none
+/// negative.
 fn check_friction(f: &Friction, n: usize) -> Result<(), EffectProblem> {
     let pairs = n.saturating_sub(1);
-    if !f.rotation_play_deg.is_empty() || pairs > 0 {
+    // the plays may be left out where the contact's coefficients give the friction
+    if !f.rotation_play_deg.is_empty() || (pairs > 0 && f.rotation_friction_coefficient.is_empty())
+    {
         check_len(
             "friction",
             "rotation_play_deg",
@@ -360,6 +372,12 @@ fn check_friction(f: &Friction, n: usize) -> Result<(), EffectProblem> {
     if !f.feed_play_mm.is_empty() {
         check_len("friction", "feed_play_mm", &f.feed_play_mm, n, "tube")?;
         check_non_negative("friction", "feed_play_mm", &f.feed_play_mm)?;
+    }
+    if !f.rotation_friction_coefficient.is_empty() {
+        let mu = &f.rotation_friction_coefficient;
+        let field = "rotation_friction_coefficient";
+        check_len("friction", field, mu, pairs, "neighbouring pair of tubes")?;
+        check_non_negative("friction", field, mu)?;
     }
     Ok(())
 }
@@ -510,6 +528,7 @@ impl Effects {
                 f.rotation_play_deg
                     .iter()
                     .chain(&f.feed_play_mm)
+                    .chain(&f.rotation_friction_coefficient)
                     .any(|&w| w > 0.0)
             })
     }

@@ -266,6 +266,7 @@ impl Ik {
                     f.rotation_play_deg
                         .iter()
                         .chain(&f.feed_play_mm)
+                        .chain(&f.rotation_friction_coefficient)
                         .any(|&w| w > 0.0)
                 }),
             ),

@@ -189,7 +189,7 @@ impl ModelSpec {
         let n = self.robot.n_tubes();
         let (k, c) = self.effects.scale_factors(n);
         let robot = self.robot.scaled(&k, &c).map_err(ModelError::Robot)?;
-        let time = TimeEffects::of(&self.effects, n);
+        let time = TimeEffects::of(&self.effects, &robot);
         Ok(RowModel {
             kernel: AnyKernel::new(&robot, self.model, &self.effects),
             shifts: time.joint_offset.iter().any(|&o| o != 0.0),
@@ -356,7 +356,7 @@ impl RowModel {
     /// let t = ctr_core::TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33);
     /// let robot = AnyRobot::new(&[t, ctr_core::TubeParams::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33)]).unwrap();
     /// let mut m = ModelSpec::plain(&robot, ctr_core::Model::Torsion);
-    /// m.effects.friction = Some(Friction { rotation_play_deg: vec![5.0], feed_play_mm: vec![] });
+    /// m.effects.friction = Some(Friction { rotation_play_deg: vec![5.0], ..Default::default() });
     /// let rows = [30.0, 0.0, 80.0, 0.0, 30.0, 0.0, 80.0, 20.0];
     /// let a = m.rows().unwrap().actual_joints(&rows, None, &[0..2]).unwrap();
     /// assert_eq!(a[7], 15.0); // the inner tube lags by the play

@@ -124,6 +124,15 @@ fn friction_words(f: &Friction) -> String {
             i + 1
         );
     }
+    for (i, m) in f.rotation_friction_coefficient.iter().enumerate() {
+        if *m > 0.0 {
+            s += &format!(
+                "; that play grows with the bending moment where tube {} ends \
+                 (friction coefficient {m:.4})",
+                i + 1
+            );
+        }
+    }
     if f.feed_play_mm.iter().any(|w| *w > 0.0) {
         s += &format!("; feed play per tube {}", list(&f.feed_play_mm, " mm"));
     }
