@@ -309,10 +309,34 @@ impl Problem<'_> {
             .zip(&bounds)
             .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
             .collect();
-        let mut now = self.iterate(x)?;
+        let start = self.iterate(x)?;
         if np == 0 {
-            return Some(now.fitted(false));
+            return Some(start.fitted(false));
         }
+        let (mut now, gave_up) = self.descend(start, max_iter, target, &bounds);
+        // Walled in at its start: every step the linearised problem asks for raised the
+        // cost, as where a row a step away snaps to another branch of the mechanics (a
+        // real robot's path near its stability limit). Once, from the point the
+        // least damped step reached, descend again; the end counts where it is lower.
+        if let Some(beyond) = now.beyond.take().and_then(|x| self.iterate(x)) {
+            let (again, again_gave_up) = self.descend(beyond, max_iter, target, &bounds);
+            if again.cost < now.cost {
+                return Some(again.fitted(again_gave_up));
+            }
+        }
+        Some(now.fitted(gave_up))
+    }
+
+    /// Levenberg-Marquardt from `now` within `bounds`, at most `max_iter` Jacobians:
+    /// where it ended, and whether it gave up on `target` (see [`Self::fit_until`]).
+    fn descend(
+        &self,
+        mut now: Iterate,
+        max_iter: usize,
+        target: Option<f64>,
+        bounds: &[(f64, f64)],
+    ) -> (Iterate, bool) {
+        let np = now.x.len();
         let mut lambda: f64 = 1e-3;
         for _ in 0..max_iter {
             let (jac, blocked) = self.jacobian_and_blocked(&now.x, &now.p);
@@ -323,22 +347,25 @@ impl Problem<'_> {
             }
             if let Some(target) = target {
                 if now.cost - PROJECTED_GAIN_MARGIN * projected_gain(&h, &g, dmax) > target {
-                    return Some(now.fitted(true));
+                    return (now, true);
                 }
             }
             // a side that cannot be simulated bounds this iteration's steps
-            let step_bounds = held_at_blocked(&bounds, &blocked, &now.x);
+            let step_bounds = held_at_blocked(bounds, &blocked, &now.x);
             match self.damped_step(&mut now, &h, &g, dmax, &step_bounds, &mut lambda) {
-                Some(true) => continue,
-                Some(false) => break,
-                None => {
+                Ok(true) => continue,
+                Ok(false) => break,
+                Err(tried) => {
                     now.stuck =
                         now.steps == 0 && projected_gain(&h, &g, dmax) > STUCK_GAIN * now.cost;
+                    if now.stuck {
+                        now.beyond = tried;
+                    }
                     break;
                 }
             }
         }
-        Some(now.fitted(false))
+        (now, false)
     }
 
     /// The fit's state at parameters `x` (`None` if they cannot be simulated).
@@ -354,6 +381,7 @@ impl Problem<'_> {
             w,
             steps: 0,
             stuck: false,
+            beyond: None,
         })
     }
 
@@ -363,7 +391,8 @@ impl Problem<'_> {
     /// Whether the fit goes on: a step was taken and it was not negligible (relative
     /// decrease below `1e-7`, every parameter moved less than `1e-3` of its scale, or a
     /// gain, scaled up by the damping, below [`CRITERION_RESOLUTION`]);
-    /// `None` when no step lowered the cost.
+    /// `Err` when no step lowered the cost, with where the least damped step that could
+    /// be simulated led.
     fn damped_step(
         &self,
         now: &mut Iterate,
@@ -372,8 +401,9 @@ impl Problem<'_> {
         dmax: f64,
         bounds: &[(f64, f64)],
         lambda: &mut f64,
-    ) -> Option<bool> {
+    ) -> Result<bool, Option<Vec<f64>>> {
         let np = now.x.len();
+        let mut first_tried = None;
         for _ in 0..12 {
             let mut a = h.clone();
             for j in 0..np {
@@ -384,7 +414,7 @@ impl Problem<'_> {
                 continue;
             };
             let xn: Vec<f64> = now.x.iter().zip(&step).map(|(a, b)| a + b).collect();
-            if let Some(next) = self.iterate(xn) {
+            if let Some(next) = self.iterate(xn.clone()) {
                 if next.cost < now.cost {
                     let rel = (now.cost - next.cost) / now.cost.max(f64::MIN_POSITIVE);
                     let small = step
@@ -398,12 +428,13 @@ impl Problem<'_> {
                     let gain = -(now.e.len() as f64) * (1.0 - rel).ln();
                     let creeping = gain * (1.0 + *lambda) < CRITERION_RESOLUTION;
                     *lambda = (*lambda / 3.0).max(1e-9);
-                    return Some(!(rel < 1e-7 || small || creeping));
+                    return Ok(!(rel < 1e-7 || small || creeping));
                 }
+                first_tried.get_or_insert(xn);
             }
             *lambda *= 10.0;
         }
-        None
+        Err(first_tried)
     }
 }
 
@@ -420,6 +451,9 @@ struct Iterate {
     /// Ended where no step lowered the cost though the linearised problem promised a
     /// gain (see [`Fitted::stuck`]).
     stuck: bool,
+    /// Where the least damped of the steps tried then led (simulated, not lower): the
+    /// point [`Problem::fit_until`] descends from once more.
+    beyond: Option<Vec<f64>>,
 }
 
 impl Iterate {
