@@ -48,29 +48,32 @@ struct TubeTerms {
     curved_mm: f64,
 }
 
-/// The robot's terms of the contact friction ([module doc](self)).
+/// The contact friction of a robot: its tubes' terms and each pair's coefficient `mu'`
+/// ([module doc](self)).
 ///
 /// ```
 /// use ctr_analysis::contact::Contact;
 /// use ctr_core::TubeParams;
 /// let outer = TubeParams { curvature_radius_mm: Some(200.0), ..TubeParams::<f64>::new(1.8, 1.5, 180.0, 60.0, 58000.0, 0.33) };
 /// let inner = TubeParams { curvature_radius_mm: Some(100.0), ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 90.0, 58000.0, 0.33) };
-/// let contact = Contact::of(&ctr_formats::AnyRobot::new(&[outer, inner]).unwrap());
+/// let contact = Contact::of(&ctr_formats::AnyRobot::new(&[outer, inner]).unwrap(), &[0.1]);
 /// let mut w = [0.0];
-/// contact.half_width_deg(&[0.1], &[40.0, 90.0], &[0.0, 0.0], &mut w);
+/// contact.half_width_deg(&[40.0, 90.0], &[0.0, 0.0], &mut w);
 /// let aligned = w[0];
-/// contact.half_width_deg(&[0.1], &[40.0, 90.0], &[0.0, 180.0], &mut w);
+/// contact.half_width_deg(&[40.0, 90.0], &[0.0, 180.0], &mut w);
 /// assert!(w[0] > aligned && aligned > 0.0); // opposed curvatures press harder
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Contact {
     tubes: Vec<TubeTerms>,
+    /// `mu'` of each neighbouring pair (missing ones zero).
+    coefficient: Vec<f64>,
 }
 
 impl Contact {
-    /// The terms of `robot`'s tubes (scaled ones: stiffness and precurvature factors
-    /// applied).
-    pub fn of(robot: &AnyRobot) -> Self {
+    /// The contact friction of `robot`'s tubes (scaled ones: stiffness and precurvature
+    /// factors applied) with coefficient `mu'` per neighbouring pair.
+    pub fn of(robot: &AnyRobot, coefficient: &[f64]) -> Self {
         let tubes = with_robot!(robot, r => r
             .tubes()
             .iter()
@@ -82,15 +85,18 @@ impl Contact {
                 curved_mm: t.params().curved_length_mm,
             })
             .collect());
-        Contact { tubes }
+        Contact {
+            tubes,
+            coefficient: coefficient.to_vec(),
+        }
     }
 
-    /// The half-width each pair's coefficient `mu` adds to its rotation play, degrees,
-    /// into `out` (one per pair), at exposed lengths `s` (mm) and angles `theta_deg`.
-    pub fn half_width_deg(&self, mu: &[f64], s: &[f64], theta_deg: &[f64], out: &mut [f64]) {
+    /// The half-width each pair's coefficient adds to its rotation play, degrees, into
+    /// `out` (one per pair), at exposed lengths `s` (mm) and angles `theta_deg`.
+    pub fn half_width_deg(&self, s: &[f64], theta_deg: &[f64], out: &mut [f64]) {
         let n = self.tubes.len().min(s.len()).min(theta_deg.len());
         for (j, w) in out.iter_mut().enumerate().take(n.saturating_sub(1)) {
-            let m = mu.get(j).copied().unwrap_or(0.0);
+            let m = self.coefficient.get(j).copied().unwrap_or(0.0);
             *w = if m > 0.0 {
                 (m * self.moment(j, s, theta_deg) * self.compliance(j, s)).to_degrees()
             } else {
@@ -156,25 +162,25 @@ mod tests {
             ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 150.0, 60000.0, 0.3)
         };
         let robot = AnyRobot::new(&[outer, inner]).unwrap();
-        let contact = Contact::of(&robot);
+        let mu = 0.05;
+        let contact = Contact::of(&robot, &[mu]);
         let (o, i) = (outer.validate(1).unwrap(), inner.validate(2).unwrap());
         let (ei1, ei2) = (o.bending_stiffness_nmm2(), i.bending_stiffness_nmm2());
         let (gj1, gj2) = (o.torsional_stiffness_nmm2(), i.torsional_stiffness_nmm2());
         let moment = 2.0 * ei1 * ei2 / 100.0 / (ei1 + ei2);
-        let mu = 0.05;
         let mut w = [0.0];
         let want = |inner_mm: f64| (mu * moment * (200.0 / gj1 + inner_mm / gj2)).to_degrees();
-        contact.half_width_deg(&[mu], &[100.0, 100.0], &[10.0, 190.0], &mut w);
+        contact.half_width_deg(&[100.0, 100.0], &[10.0, 190.0], &mut w);
         assert!(
             (w[0] - want(260.0)).abs() < 1e-9 * w[0],
             "{} vs {}",
             w[0],
             want(260.0)
         );
-        contact.half_width_deg(&[mu], &[100.0, 100.0], &[10.0, 10.0], &mut w);
+        contact.half_width_deg(&[100.0, 100.0], &[10.0, 10.0], &mut w);
         assert!(w[0].abs() < 1e-12, "{}", w[0]);
         // the inner tube out by 30 mm: its actuator 30 mm nearer the contact
-        contact.half_width_deg(&[mu], &[100.0, 130.0], &[10.0, 190.0], &mut w);
+        contact.half_width_deg(&[100.0, 130.0], &[10.0, 190.0], &mut w);
         assert!(
             (w[0] - want(230.0)).abs() < 1e-9 * w[0],
             "{} vs {}",
@@ -182,7 +188,7 @@ mod tests {
             want(230.0)
         );
         // zero coefficient: nothing
-        contact.half_width_deg(&[0.0], &[100.0, 130.0], &[10.0, 190.0], &mut w);
+        Contact::of(&robot, &[0.0]).half_width_deg(&[100.0, 130.0], &[10.0, 190.0], &mut w);
         assert_eq!(w[0], 0.0);
     }
 
@@ -215,10 +221,10 @@ mod tests {
         let q: Vec<f64> = path.iter().flat_map(|&a| [40.0, 0.0, 90.0, a]).collect();
         let t: Vec<f64> = (0..path.len()).map(|k| k as f64).collect();
         let actual = actual_joints_flat(&t, &q, 4, &time);
-        let contact = Contact::of(&robot);
+        let contact = Contact::of(&robot, &[0.02]);
         let lag_at = |a: f64| {
             let mut w = [0.0];
-            contact.half_width_deg(&[0.02], &[40.0, 90.0], &[0.0, a], &mut w);
+            contact.half_width_deg(&[40.0, 90.0], &[0.0, a], &mut w);
             1.5 + w[0]
         };
         let top = 120;

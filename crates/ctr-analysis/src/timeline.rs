@@ -36,10 +36,8 @@ pub struct TimeEffects {
     pub rotation_play_deg: Vec<f64>,
     /// Half-width of the feed play of each tube, mm.
     pub feed_play_mm: Vec<f64>,
-    /// The seed's friction coefficient of each neighbouring pair: the rotation play
-    /// grows by what the contact moment winds up ([`crate::contact`]).
-    pub rotation_friction_coefficient: Vec<f64>,
-    /// The robot's terms of that growth (`None`: no coefficient).
+    /// The seed's contact friction: each pair's rotation play grows by what the contact
+    /// moment winds up ([`crate::contact`]; `None`: no coefficient).
     pub contact: Option<Contact>,
 }
 
@@ -78,9 +76,9 @@ impl TimeEffects {
             for (i, w) in f.feed_play_mm.iter().enumerate().take(n) {
                 t.feed_play_mm[i] = *w;
             }
-            if f.rotation_friction_coefficient.iter().any(|&m| m > 0.0) {
-                t.rotation_friction_coefficient = f.rotation_friction_coefficient.clone();
-                t.contact = Some(Contact::of(robot));
+            let mu = &f.rotation_friction_coefficient;
+            if mu.iter().any(|&m| m > 0.0) {
+                t.contact = Some(Contact::of(robot, mu));
             }
         }
         t
@@ -98,7 +96,6 @@ impl TimeEffects {
             latency_s: 0.0,
             rotation_play_deg: vec![0.0; n.saturating_sub(1)],
             feed_play_mm: vec![0.0; n],
-            rotation_friction_coefficient: vec![0.0; n.saturating_sub(1)],
             contact: None,
         }
     }
@@ -199,12 +196,7 @@ pub fn actual_joints_flat(t_s: &[f64], q: &[f64], width: usize, effects: &TimeEf
     let mut step = |row: &[f64], out: &mut [f64]| {
         split(row, &mut s, &mut theta);
         if let Some(c) = contact {
-            c.half_width_deg(
-                &effects.rotation_friction_coefficient,
-                &s,
-                &theta,
-                &mut grown,
-            );
+            c.half_width_deg(&s, &theta, &mut grown);
             for ((w, play), g) in half_width
                 .iter_mut()
                 .zip(&effects.rotation_play_deg)
