@@ -147,20 +147,26 @@ mod tests {
     use super::*;
     use ctr_core::TubeParams;
 
+    /// Outer and inner tube of the tests: diameters (mm) and length (mm).
+    const OUTER: (f64, f64, f64) = (1.8, 1.5, 200.0);
+    const INNER: (f64, f64, f64) = (1.2, 0.9, 260.0);
+
+    /// A nitinol tube (diameters and length) with a precurved distal part of `curved_mm` at
+    /// `radius_mm`.
+    fn tube((od, id, length): (f64, f64, f64), radius_mm: f64, curved_mm: f64) -> TubeParams<f64> {
+        TubeParams {
+            curvature_radius_mm: Some(radius_mm),
+            ..TubeParams::new(od, id, length, curved_mm, 60000.0, 0.3)
+        }
+    }
+
     /// Two fully overlapped tubes of curvature `k`, anti-aligned: `u` is the
     /// stiffness-weighted difference, so `|M_1| = 2 E I_1 E I_2 k / (E I_1 + E I_2)`;
     /// aligned, `u = k e`: no moment. The half-width is `mu |M_1|` times
     /// `L_1 / G J_1 + (L_2 - s_2 + s_1) / G J_2`.
     #[test]
     fn the_moment_and_wind_up_of_two_tubes() {
-        let outer = TubeParams {
-            curvature_radius_mm: Some(100.0),
-            ..TubeParams::<f64>::new(1.8, 1.5, 200.0, 150.0, 60000.0, 0.3)
-        };
-        let inner = TubeParams {
-            curvature_radius_mm: Some(100.0),
-            ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 150.0, 60000.0, 0.3)
-        };
+        let (outer, inner) = (tube(OUTER, 100.0, 150.0), tube(INNER, 100.0, 150.0));
         let robot = AnyRobot::new(&[outer, inner]).unwrap();
         let mu = 0.05;
         let contact = Contact::of(&robot, &[mu]);
@@ -198,15 +204,7 @@ mod tests {
     #[test]
     fn a_run_lags_by_the_play_plus_the_wound_up_moment() {
         use crate::timeline::{actual_joints_flat, TimeEffects};
-        let outer = TubeParams {
-            curvature_radius_mm: Some(150.0),
-            ..TubeParams::<f64>::new(1.8, 1.5, 200.0, 150.0, 60000.0, 0.3)
-        };
-        let inner = TubeParams {
-            curvature_radius_mm: Some(80.0),
-            ..TubeParams::<f64>::new(1.2, 0.9, 260.0, 100.0, 60000.0, 0.3)
-        };
-        let robot = AnyRobot::new(&[outer, inner]).unwrap();
+        let robot = AnyRobot::new(&[tube(OUTER, 150.0, 150.0), tube(INNER, 80.0, 100.0)]).unwrap();
         let effects = ctr_formats::Effects {
             friction: Some(ctr_formats::Friction {
                 rotation_play_deg: vec![1.5],

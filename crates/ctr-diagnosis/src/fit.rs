@@ -414,7 +414,7 @@ impl Problem<'_> {
                 continue;
             };
             let xn: Vec<f64> = now.x.iter().zip(&step).map(|(a, b)| a + b).collect();
-            if let Some(next) = self.iterate(xn.clone()) {
+            if let Some(next) = self.iterate(xn) {
                 if next.cost < now.cost {
                     let rel = (now.cost - next.cost) / now.cost.max(f64::MIN_POSITIVE);
                     let small = step
@@ -430,7 +430,7 @@ impl Problem<'_> {
                     *lambda = (*lambda / 3.0).max(1e-9);
                     return Ok(!(rel < 1e-7 || small || creeping));
                 }
-                first_tried.get_or_insert(xn);
+                first_tried.get_or_insert(next.x);
             }
             *lambda *= 10.0;
         }
@@ -514,7 +514,10 @@ fn normal_equations(
     for (row, wr) in w.iter().enumerate() {
         for a in 0..3 {
             let i = 3 * row + a;
-            g += jac.row(i).transpose() * (wr * e[i]);
+            let we = wr * e[i];
+            for (c, gc) in g.iter_mut().enumerate() {
+                *gc += jac[(i, c)] * we;
+            }
         }
     }
     (robust_information(jac, w, e, np), g)

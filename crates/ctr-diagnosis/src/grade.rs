@@ -138,9 +138,12 @@ fn on_bounds(problem: &Problem, x: &[f64], unidentified: Option<&[bool]>) -> Vec
     out
 }
 
-/// Grades the established `findings` by their intervals ([`by_intervals`]) and their
-/// fit's bounds ([`by_bounds`]) at `fitted`, `problem`'s model, as `assessment` (when
-/// computed) saw it.
+/// Grades the established `findings` by their intervals ([`by_intervals`]), then lowers
+/// to predictive every one whose effect has a parameter on a bound of its fit at
+/// `fitted`, `problem`'s model ([`on_bounds`], the parameters `assessment` found not
+/// identified alone left out, when computed): the fit's value is not a minimum the data
+/// place inside the plausible range, its interval is cut by the bound, and an effect
+/// pushed that far most likely stands in for something else.
 pub(crate) fn by_evidence(
     findings: &mut [Finding],
     problem: &Problem,
@@ -149,24 +152,12 @@ pub(crate) fn by_evidence(
 ) {
     by_intervals(findings);
     let unidentified = assessment.map(|a| a.unidentified.as_slice());
-    by_bounds(findings, problem, &problem.read(fitted), unidentified);
+    let on_bound = on_bounds(problem, &problem.read(fitted), unidentified);
+    lower_on_bound(findings, &on_bound);
 }
 
-/// Lowers to predictive every established finding whose effect has a parameter at `x`
-/// on a bound of `problem`'s fit ([`on_bounds`]; `unidentified` the parameters the
-/// data do not identify alone, where known): the fit's value is not a minimum the data
-/// place inside the plausible range, its interval is cut by the bound, and an effect
-/// pushed that far most likely stands in for something else.
-fn by_bounds(
-    findings: &mut [Finding],
-    problem: &Problem,
-    x: &[f64],
-    unidentified: Option<&[bool]>,
-) {
-    lower_on_bound(findings, &on_bounds(problem, x, unidentified));
-}
-
-/// [`by_bounds`] for the effects `on_bound`.
+/// Lowers to predictive the established findings of the effects `on_bound` (see
+/// [`by_evidence`]).
 fn lower_on_bound(findings: &mut [Finding], on_bound: &[EffectId]) {
     for f in findings
         .iter_mut()

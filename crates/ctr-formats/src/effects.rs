@@ -134,9 +134,27 @@ pub struct Friction {
     /// (dimensionless, default zeros; this project's extension): the rotation play's
     /// half-width grows by `mu' |M|` times the pair's torsional compliance, `M` the
     /// bending moment the outer tube of the pair carries at its tip (Liu et al. 2023,
-    /// eq. 10; `ctr_analysis::timeline`).
+    /// eq. 10; `ctr_analysis::contact`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub rotation_friction_coefficient: Vec<f64>,
+}
+
+impl Friction {
+    /// Whether it acts at all: a play or a coefficient above zero (then the tip depends
+    /// on the rows before it).
+    ///
+    /// ```
+    /// use ctr_formats::Friction;
+    /// assert!(!Friction::default().acts());
+    /// assert!(Friction { rotation_friction_coefficient: vec![0.02], ..Friction::default() }.acts());
+    /// ```
+    pub fn acts(&self) -> bool {
+        self.rotation_play_deg
+            .iter()
+            .chain(&self.feed_play_mm)
+            .chain(&self.rotation_friction_coefficient)
+            .any(|&w| w > 0.0)
+    }
 }
 
 /// `[model.effects.clearance]`: per neighbouring pair, a cosine profile
@@ -524,13 +542,7 @@ impl Effects {
     /// True when an effect needs the rows' order and times (latency, friction).
     pub fn needs_time(&self) -> bool {
         self.latency.is_some_and(|l| l.tau_s != 0.0)
-            || self.friction.as_ref().is_some_and(|f| {
-                f.rotation_play_deg
-                    .iter()
-                    .chain(&f.feed_play_mm)
-                    .chain(&f.rotation_friction_coefficient)
-                    .any(|&w| w > 0.0)
-            })
+            || self.friction.as_ref().is_some_and(Friction::acts)
     }
 
     /// Checks every table against a robot of `n` tubes (lengths, finite and positive

@@ -262,13 +262,10 @@ impl Ik {
             ("latency", effects.latency.is_some_and(|l| l.tau_s != 0.0)),
             (
                 "friction",
-                effects.friction.as_ref().is_some_and(|f| {
-                    f.rotation_play_deg
-                        .iter()
-                        .chain(&f.feed_play_mm)
-                        .chain(&f.rotation_friction_coefficient)
-                        .any(|&w| w > 0.0)
-                }),
+                effects
+                    .friction
+                    .as_ref()
+                    .is_some_and(ctr_formats::Friction::acts),
             ),
         ] {
             if on {
