@@ -105,16 +105,13 @@ pub(crate) fn attach(
             m.insert("identified".into(), Value::Array(mine));
         }
         f.ci95 = ci;
-        let words: Vec<String> = combos
-            .iter()
-            .filter(|c| c.effect == b)
-            .map(Combination::words)
-            .collect();
-        if !words.is_empty() {
+        let own: Vec<&Combination> = combos.iter().filter(|c| c.effect == b).collect();
+        if let Some(first) = own.first() {
+            let words: Vec<String> = own.iter().map(|c| c.words()).collect();
             f.explanation += &format!(
-                " The data identify only {}; the values alone are not identified (kept at \
-                 the nominal along the direction the data cannot see).",
-                words.join(", ")
+                " The data identify only {}; the values alone are not identified ({}).",
+                words.join(", "),
+                a.tie_along(first.direction).words()
             );
         }
     }

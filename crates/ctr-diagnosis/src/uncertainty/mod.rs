@@ -13,10 +13,12 @@
 //! - an eigenvector `v` with eigenvalue below [`UNIDENTIFIED_EIGEN`] x the largest is
 //!   a direction `u = D v` along which the tips do not change: the parameters taking
 //!   part in it are **not identified** (a common factor of every tube's stiffness, seen
-//!   by kinematics alone). Their values are set to the nominal along `u` (the fit's
-//!   value would be arbitrary), their intervals are the fit's bounds, and the
-//!   combinations orthogonal to `u` are reported as what is identified (the ratio of
-//!   two stiffness factors);
+//!   by kinematics alone). The basis of these directions is put in reduced echelon
+//!   form, so that parameters unseen each on its own are stated so and directions of
+//!   disjoint parameters come apart ([`unseen`]); their values are set to the nominal
+//!   along them where the tips do not move (the fit's value would be arbitrary), their
+//!   intervals are the fit's bounds, and the combinations orthogonal to every such
+//!   direction are reported as what is identified (the ratio of two stiffness factors);
 //! - on the identified directions two covariances are computed and the larger variance
 //!   of each parameter kept (correlations from the first):
 //!   - the classical `s^2 H^+`, `s^2 = sum_i w_i |e_i|^2 / (N - p)` (so a residual that
@@ -58,6 +60,10 @@ use serde_json::Value;
 mod file_form;
 mod profile;
 mod remainder;
+mod unseen;
+
+pub(crate) use unseen::Tie;
+use unseen::Unseen;
 
 /// Eigenvalue of the scaled information matrix, relative to its largest, below which
 /// a direction is not identified (a singular value ratio of 1e-4 of the scaled
@@ -144,8 +150,9 @@ pub(crate) struct Assessment {
     pub information: DMatrix<f64>,
     /// Whether each parameter takes part in a direction not identified.
     pub unidentified: Vec<bool>,
-    /// Directions not identified, in the parameters' units.
-    null: Vec<DVector<f64>>,
+    /// Directions not identified (in the parameters' units, reduced echelon form) and
+    /// their groups.
+    unseen: Unseen,
     /// The classical covariance `s^2 H^+` (the profiles' directions).
     classic: DMatrix<f64>,
     /// The weighted residual variance per component `s^2`.
@@ -355,39 +362,6 @@ fn larger_variance(classic: &DMatrix<f64>, sandwich: &DMatrix<f64>) -> DMatrix<f
     cov
 }
 
-/// `x` set to the nominal along the directions not identified `null_scaled` (scaled
-/// by `d`): in scaled units `x_s - V V^T (x_s - nominal_s)`, kept only where it stays
-/// within the bounds and the tips really do not move (the cost stays at `cost`).
-fn tied_to_nominal(
-    problem: &Problem,
-    x: &[f64],
-    nominal: &[f64],
-    null_scaled: &[DVector<f64>],
-    d: &[f64],
-    cost: f64,
-) -> Vec<f64> {
-    let np = x.len();
-    let diff = DVector::from_iterator(np, (0..np).map(|j| (x[j] - nominal[j]) / d[j]));
-    let mut shift = DVector::<f64>::zeros(np);
-    for v in null_scaled {
-        shift += v * v.dot(&diff);
-    }
-    let tied: Vec<f64> = (0..np).map(|j| x[j] - d[j] * shift[j]).collect();
-    let bounded = tied.iter().enumerate().all(|(j, v)| {
-        let (lo, hi) = problem.scale(j).1;
-        *v >= lo && *v <= hi
-    });
-    if bounded
-        && problem
-            .cost_at(&tied)
-            .is_some_and(|c| c <= cost * (1.0 + 1e-6) + 1e-12)
-    {
-        tied
-    } else {
-        x.to_vec()
-    }
-}
-
 /// The method, in words: `clusters` blocks of `len` consecutive fit rows.
 fn method_words(clusters: usize, len: usize) -> String {
     format!(
@@ -432,23 +406,18 @@ impl Assessment {
         let jac = without_negligible_columns(problem.jacobian(x, &p0)?, problem);
         let h = robust_information(&jac, &w, &e, np);
         let (h_pinv, null_scaled, d) = pseudo_inverse(&h);
-        let dm = DMatrix::from_diagonal(&DVector::from_column_slice(&d));
         let identified = np - null_scaled.len();
         let s2 = residual_variance(&e, &w, problem.rows.len(), identified);
         let classic = &h_pinv * s2;
         let robust = Sandwich::new(problem, &jac, &e, &w, &h_pinv, &classic);
         let cov = larger_variance(&classic, &robust.cov);
         // directions not identified, in the parameters' units; set to the nominal
-        let null: Vec<DVector<f64>> = null_scaled.iter().map(|v| &dm * v).collect();
+        let mut unseen = Unseen::new(&null_scaled, &d);
         let mut unidentified: Vec<bool> = (0..np).map(|j| h[(j, j)] <= 0.0).collect();
-        for j in null.iter().flat_map(parts) {
+        for j in unseen.directions.iter().flat_map(parts) {
             unidentified[j] = true;
         }
-        let xs = if null_scaled.is_empty() {
-            x.to_vec()
-        } else {
-            tied_to_nominal(problem, x, nominal, &null_scaled, &d, cost)
-        };
+        let xs = unseen.tie(problem, x, nominal, cost);
         let clusters = robust.clusters;
         Some(Assessment {
             x: xs,
@@ -460,7 +429,7 @@ impl Assessment {
             cov,
             information: h,
             unidentified,
-            null,
+            unseen,
             classic,
             s2,
             cost,
@@ -512,7 +481,7 @@ impl Assessment {
     /// the finding of its first parameter.
     pub fn combinations(&self) -> Vec<Combination> {
         let mut out = Vec::new();
-        for (direction, u) in self.null.iter().enumerate() {
+        for (direction, u) in self.unseen.directions.iter().enumerate() {
             let part = parts(u);
             let Some(&r) = part.iter().find(|&&j| u[j].abs() >= 0.5 * u.amax()) else {
                 continue;
@@ -585,29 +554,62 @@ impl Assessment {
     /// shares its parameters; its variance there is the pseudo-inverse's zero, not a
     /// measurement.
     fn identifies(&self, a: &DVector<f64>) -> bool {
-        self.null
+        self.unseen
+            .directions
             .iter()
             .all(|u| a.dot(u).abs() <= ORTHOGONAL_WITHIN * a.norm() * u.norm())
     }
 
-    /// What the data do not identify, in words (one sentence per direction, with the
-    /// combinations across it not listed before).
+    /// What the data do not identify, in words: one sentence for the parameters unseen
+    /// each on its own (per how far they went toward the nominal), then one per group
+    /// of directions that share parameters, with the combinations across it listed
+    /// before.
     pub fn statements(&self, combos: &[Combination]) -> Vec<String> {
         let mut out = Vec::new();
-        for (direction, u) in self.null.iter().enumerate() {
-            let names: Vec<String> = parts(u)
-                .into_iter()
-                .map(|j| self.labels[j].name.clone())
+        // parameters unseen each on its own, by how far they went toward the nominal:
+        // one sentence for all of them
+        for tie in [Tie::Nominal, Tie::TowardNominal, Tie::Fitted] {
+            let alone: Vec<String> = self
+                .unseen
+                .groups
+                .iter()
+                .filter(|g| g.tie == tie && g.directions.len() == g.parameters.len())
+                .flat_map(|g| g.parameters.iter().map(|&j| self.labels[j].name.clone()))
+                .collect();
+            if !alone.is_empty() {
+                let one = alone.len() == 1;
+                out.push(format!(
+                    "not identified: {} (the tips do not change when {} moves); {} {}",
+                    alone.join(", "),
+                    if one { "it" } else { "any of them" },
+                    if one { "it is" } else { "they are" },
+                    tie.words()
+                ));
+            }
+        }
+        for group in &self.unseen.groups {
+            if group.directions.len() == group.parameters.len() {
+                continue;
+            }
+            let names: Vec<String> = group
+                .parameters
+                .iter()
+                .map(|&j| self.labels[j].name.clone())
                 .collect();
             let ids: Vec<String> = combos
                 .iter()
-                .filter(|c| c.direction == direction)
+                .filter(|c| group.directions.contains(&c.direction))
                 .map(Combination::words)
                 .collect();
             let mut s = format!(
-                "not identified alone: {} (the tips do not change when they move together); \
-                 they are kept at the nominal along that direction",
-                names.join(", ")
+                "not identified alone: {} (the tips do not change when they move \
+                 together{}); they are {}",
+                names.join(", "),
+                match group.directions.len() {
+                    1 => String::new(),
+                    k => format!(", in {k} independent ways"),
+                },
+                group.tie.words()
             );
             if !ids.is_empty() {
                 s += &format!(
@@ -623,6 +625,11 @@ impl Assessment {
             out.push(s);
         }
         out
+    }
+
+    /// How far the values went toward the nominal along direction `k` not identified.
+    pub(crate) fn tie_along(&self, k: usize) -> Tie {
+        self.unseen.group_of(k).map_or(Tie::Fitted, |g| g.tie)
     }
 }
 

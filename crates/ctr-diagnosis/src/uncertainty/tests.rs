@@ -121,7 +121,7 @@ fn with_null(null: Vec<nalgebra::DVector<f64>>) -> Assessment {
         cov: DMatrix::identity(3, 3),
         information: DMatrix::identity(3, 3),
         unidentified: vec![true; 3],
-        null,
+        unseen: super::unseen::Unseen::new(&null, &[1.0; 3]),
         classic: DMatrix::identity(3, 3),
         s2: 1.0,
         cost: 0.0,
@@ -146,4 +146,25 @@ fn a_combination_along_another_unseen_direction_is_not_identified() {
         |a: &Assessment| -> Vec<String> { a.combinations().into_iter().map(|c| c.name).collect() };
     assert_eq!(names(&with_null(vec![ab.clone()])), ["b - a (mm)"]);
     assert!(names(&with_null(vec![ab, bc])).is_empty());
+}
+
+/// Two parameters unseen each on their own, in the mixed basis an eigen solver gives
+/// for equal eigenvalues, are stated once, as unseen alone: not twice as a pair that
+/// "moves together" (the real recording's feed plays of two tubes that never move).
+#[test]
+fn parameters_unseen_each_alone_are_stated_once() {
+    use nalgebra::DVector;
+    let s = 0.5_f64.sqrt();
+    let mixed = vec![
+        DVector::from_vec(vec![s, s, 0.0]),
+        DVector::from_vec(vec![s, -s, 0.0]),
+    ];
+    let a = with_null(mixed);
+    let said = a.statements(&a.combinations());
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(
+        said[0].starts_with("not identified: a, b (the tips do not change when any of them moves)"),
+        "{said:?}"
+    );
+    assert!(a.combinations().is_empty());
 }
