@@ -88,6 +88,7 @@ mod fit;
 mod found;
 mod grade;
 mod jacobian;
+mod levenberg;
 pub mod locate;
 mod options;
 mod paired;
