@@ -178,7 +178,7 @@ fn best_fit(problem: &Problem, starts: &[Vec<f64>]) -> Result<Fitted, DiagnoseEr
 
 /// One finding per effect named to calibrate, of the fitted model `m` (its error
 /// vectors `e`, modelled tips `tips`): where its change shows, its parameters, graded
-/// by its intervals alone (no checks run).
+/// by its intervals and bounds alone (no checks run).
 fn named_findings(
     start: &Start,
     blocks: &[EffectId],
@@ -197,10 +197,11 @@ fn named_findings(
         .iter()
         .map(|&c| Finding {
             effect: c,
-            // no checks: graded by its intervals alone (`crate::grade::by_intervals`)
+            // no checks: graded by its intervals and bounds alone (`crate::grade::by_evidence`)
             grade: Grade::Established,
             grade_reason: "named to calibrate (no checks run); at least one of its 95 % \
-                           intervals excludes the value that means it is not there"
+                           intervals excludes the value that means it is not there, and no \
+                           parameter sits on a bound of its fit"
                 .into(),
             explanation: explain(c, m),
             where_: where_.clone(),

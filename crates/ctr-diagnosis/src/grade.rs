@@ -98,9 +98,8 @@ pub(crate) fn by_intervals(findings: &mut [Finding]) {
         .filter(|f| f.grade == Grade::Established && !present_beyond_doubt(f))
     {
         f.grade = Grade::Predictive;
-        f.grade_reason = "it passes every check, but each of its parameters' 95 % intervals \
-                          holds the value that means it is not there: the data do not rule \
-                          its absence out"
+        f.grade_reason = "each of its parameters' 95 % intervals holds the value that means \
+                          it is not there: the data do not rule its absence out"
             .into();
     }
 }
@@ -164,9 +163,9 @@ fn lower_on_bound(findings: &mut [Finding], on_bound: &[EffectId]) {
         .filter(|f| f.grade == Grade::Established && on_bound.contains(&f.effect))
     {
         f.grade = Grade::Predictive;
-        f.grade_reason = "it passes every check, but a parameter sits on the bound of its \
-                          fit: the data push it beyond any plausible value, so it may stand \
-                          in for something outside the vocabulary"
+        f.grade_reason = "a parameter sits on the bound of its fit: the data push it beyond \
+                          any plausible value, so it may stand in for something outside the \
+                          vocabulary"
             .into();
     }
 }

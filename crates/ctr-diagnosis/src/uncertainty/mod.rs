@@ -569,13 +569,15 @@ impl Assessment {
         // parameters unseen each on its own, by how far they went toward the nominal:
         // one sentence for all of them
         for tie in [Tie::Nominal, Tie::TowardNominal, Tie::Fitted] {
-            let alone: Vec<String> = self
+            let mut alone: Vec<usize> = self
                 .unseen
                 .groups
                 .iter()
                 .filter(|g| g.tie == tie && g.directions.len() == g.parameters.len())
-                .flat_map(|g| g.parameters.iter().map(|&j| self.labels[j].name.clone()))
+                .flat_map(|g| g.parameters.iter().copied())
                 .collect();
+            alone.sort_unstable();
+            let alone: Vec<String> = alone.iter().map(|&j| self.labels[j].name.clone()).collect();
             if !alone.is_empty() {
                 let one = alone.len() == 1;
                 out.push(format!(
