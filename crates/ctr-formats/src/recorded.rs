@@ -66,6 +66,9 @@ pub struct Run {
 /// let bad = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n1,a,10,0,0,0,10\n0,a,11,0,0,0,11\n";
 /// let e = Recording::read(bad.as_bytes(), "rec.csv", 1).unwrap_err();
 /// assert_eq!(e.to_string(), "rec.csv:3: column t_s: 0 is earlier than the previous row's 1 in run a; rows of a run must be in time order");
+/// let split = "t_s,run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\n0,a,10,0,0,0,10\n0,b,11,0,0,0,11\n1,a,12,0,0,0,12\n";
+/// let e = Recording::read(split.as_bytes(), "rec.csv", 1).unwrap_err();
+/// assert!(e.to_string().starts_with("rec.csv:4: column run: run a starts again here"), "{e}");
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
@@ -479,7 +482,7 @@ impl RowsSoFar {
 
     /// Puts the next row (of run `label`, at `t_s`) in its run: the run of the row
     /// before when it has the same label (then not earlier than that row), else a new
-    /// one.
+    /// one (an error when an earlier run had the label: a run is one stretch of rows).
     fn add_to_run(
         &mut self,
         label: &str,
@@ -501,10 +504,23 @@ impl RowsSoFar {
                 }
                 r.rows.end = i + 1;
             }
-            _ => self.runs.push(Run {
-                label: label.to_owned(),
-                rows: i..i + 1,
-            }),
+            _ => {
+                if let Some(earlier) = self.runs.iter().find(|r| r.label == label) {
+                    let last = &self.rows[earlier.rows.end - 1];
+                    return Err(at(ErrorKind::Csv {
+                        message: format!(
+                            "column run: run {label} starts again here after other rows (its \
+                             rows ended at line {}); rows with the same label form one \
+                             continuous run: give this part a label of its own",
+                            last.line
+                        ),
+                    }));
+                }
+                self.runs.push(Run {
+                    label: label.to_owned(),
+                    rows: i..i + 1,
+                })
+            }
         }
         Ok(())
     }

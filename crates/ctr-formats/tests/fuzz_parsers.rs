@@ -585,12 +585,21 @@ fn recording() -> impl Strategy<Value = Rec> {
             header.rotate_left(k);
             let mut t = 0.0;
             let mut prev_label: Option<String> = None;
+            let mut used: Vec<String> = Vec::new();
             let mut out = Vec::new();
             let mut want = Vec::new();
             for (i, (q, dt, label, p, qq, tt, f)) in rows.into_iter().enumerate() {
                 // a unit quaternion and tangent (within the reader's tolerance, kept as read)
                 let (qq, tt) = (unit(qq), unit(tt));
-                let label = if run { label } else { "all".to_owned() };
+                let mut label = if run { label } else { "all".to_owned() };
+                // a run is one stretch of rows: a label used before starts a new one
+                // only under a name of its own
+                if prev_label.as_deref() != Some(&label) {
+                    while used.contains(&label) {
+                        label.push('+');
+                    }
+                    used.push(label.clone());
+                }
                 if prev_label.as_deref() != Some(&label) {
                     t = 0.0;
                 }
