@@ -424,8 +424,13 @@ fn pearson(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
     }
 }
 
+/// Share of the squared error a pattern must explain to be named in a [`summary`]: one
+/// that explains less (printed as 0 %) says nothing of where the error sits.
+pub const NAMED_PATTERN_SHARE: f64 = 0.005;
+
 /// A one-line summary of where a pattern of error sits: the runs that carry most of it
-/// and its strongest non-run pattern.
+/// and its strongest non-run pattern (where that explains at least
+/// [`NAMED_PATTERN_SHARE`]).
 pub fn summary(statements: &[Statement]) -> String {
     let mut runs: Vec<&Statement> = statements.iter().filter(|s| s.kind == "run").collect();
     runs.sort_by(|a, b| b.explained.total_cmp(&a.explained));
@@ -441,7 +446,8 @@ pub fn summary(statements: &[Statement]) -> String {
     let pattern = statements
         .iter()
         .filter(|s| s.kind != "run")
-        .max_by(|a, b| a.explained.total_cmp(&b.explained));
+        .max_by(|a, b| a.explained.total_cmp(&b.explained))
+        .filter(|p| p.explained >= NAMED_PATTERN_SHARE);
     let mut out = format!("runs {}", names.join(", "));
     if let Some(p) = pattern {
         out += "; ";
@@ -481,4 +487,34 @@ pub fn causes(s: &Statement) -> Option<String> {
         "offset" => "a constant offset: a mounting or tracker offset".into(),
         _ => return None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn statement(kind: &str, feature: &str, explained: f64) -> Statement {
+        Statement {
+            kind: kind.into(),
+            feature: feature.into(),
+            explained,
+            text: format!("{kind} of {feature}"),
+        }
+    }
+
+    /// The strongest pattern is named where it explains a share of the error, and left
+    /// out where it explains next to nothing (it would print as 0 %).
+    #[test]
+    fn a_pattern_that_explains_nothing_is_not_named() {
+        let runs = [statement("run", "a", 0.6), statement("run", "b", 0.4)];
+        let with = |p: Statement| summary(&[runs[0].clone(), runs[1].clone(), p]);
+        assert_eq!(
+            with(statement("direction", "s3 - s2", 0.001)),
+            "runs a (60%), b (40%)"
+        );
+        assert_eq!(
+            with(statement("direction", "s3 - s2", 0.2)),
+            "runs a (60%), b (40%); direction of s3 - s2"
+        );
+    }
 }

@@ -15,7 +15,7 @@
 
 use crate::error::DiagnoseError;
 use crate::locate::stability::Stability;
-use crate::report::numbers::{intervals, sig, Interval};
+use crate::report::numbers::{intervals, sig, sig_interval, Interval};
 use crate::report::plots::{Plot, RunError, Traces};
 use crate::report::Grade;
 use crate::report::{fitted_file, Report, REMOVED};
@@ -268,14 +268,11 @@ fn verdict(h: &mut String, r: &Value) {
 
 /// One interval as a table row: name, value, lower and upper end.
 fn interval_row(h: &mut String, i: &Interval) {
-    let end = |v: Option<f64>| v.map_or("not bounded".to_owned(), sig);
+    let [v, lo, hi] = sig_interval(i.value, i.lo, i.hi).map(|x| x.unwrap_or("not bounded".into()));
     let _ = writeln!(
         h,
-        "<tr><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td></tr>",
+        "<tr><td>{}</td><td class=\"n\">{v}</td><td class=\"n\">{lo}</td><td class=\"n\">{hi}</td></tr>",
         escape(&i.name),
-        sig(i.value),
-        end(i.lo),
-        end(i.hi)
     );
 }
 

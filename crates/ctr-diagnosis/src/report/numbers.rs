@@ -3,6 +3,38 @@
 
 use serde_json::Value;
 
+/// Share of the largest number printed beside it (a value's interval ends) below which a
+/// number prints as 0: what is left there is the fit's rounding (a play fitted to
+/// 2e-11 deg beside an interval up to 0.95 deg, an interval end at -1e-14).
+pub(crate) const NEGLIGIBLE_BESIDE: f64 = 1e-6;
+
+/// [`sig`] of `v` printed beside `others` (its interval's ends): 0 where it is below
+/// [`NEGLIGIBLE_BESIDE`] of the largest of them all.
+///
+/// ```text
+/// assert_eq!(sig_beside(2e-11, &[0.0, 0.9545]), "0");
+/// assert_eq!(sig_beside(-1e-14, &[0.5314, 2.332]), "0");
+/// assert_eq!(sig_beside(0.5314, &[0.0, 2.332]), "0.5314");
+/// ```
+pub(crate) fn sig_beside(v: f64, others: &[f64]) -> String {
+    let largest = others
+        .iter()
+        .chain([&v])
+        .filter(|x| x.is_finite())
+        .fold(0.0_f64, |m, x| m.max(x.abs()));
+    if v.is_finite() && v.abs() < NEGLIGIBLE_BESIDE * largest {
+        return "0".into();
+    }
+    sig(v)
+}
+
+/// A value and its interval's ends in words, each by [`sig_beside`] the others
+/// (`None`: an end not known).
+pub(crate) fn sig_interval(v: f64, lo: Option<f64>, hi: Option<f64>) -> [Option<String>; 3] {
+    let all: Vec<f64> = [Some(v), lo, hi].into_iter().flatten().collect();
+    [Some(v), lo, hi].map(|x| x.map(|x| sig_beside(x, &all)))
+}
+
 /// A number with four significant digits, for the words.
 pub(crate) fn sig(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
@@ -125,5 +157,21 @@ mod tests {
         assert_eq!(r["a"][1], serde_json::json!([1.0, 1.5]));
         assert_eq!(r["kind"], "x");
         assert_eq!(r["b"], serde_json::json!([2.0, 2.5]));
+    }
+
+    /// What the fit leaves at rounding beside an interval prints as 0; what is not
+    /// negligible keeps its four digits.
+    #[test]
+    fn rounding_beside_an_interval_prints_as_zero() {
+        assert_eq!(sig_beside(2e-11, &[0.0, 0.9545]), "0");
+        assert_eq!(sig_beside(-1e-14, &[0.5314, 2.332]), "0");
+        assert_eq!(sig_beside(0.5314, &[0.0, 2.332]), "0.5314");
+        assert_eq!(sig_beside(2e-11, &[1e-11, 3e-11]), sig(2e-11));
+        let [v, lo, hi] = sig_interval(0.5314, Some(-1e-14), Some(2.332));
+        assert_eq!(
+            (v.unwrap(), lo.unwrap(), hi.unwrap()),
+            ("0.5314".into(), "0".into(), "2.332".into())
+        );
+        assert_eq!(sig_interval(1.0, None, Some(2.0))[1], None);
     }
 }

@@ -3,7 +3,7 @@
 //! left, the next steps.
 
 use super::{numbers, Finding, Grade, Report, Term, REMOVED};
-use numbers::sig;
+use numbers::{sig, sig_interval};
 
 impl Report {
     /// The summary's last lines: the rows near a snap, the run to record next, the
@@ -250,32 +250,22 @@ fn finding_words(f: &Finding) -> String {
 /// 0.7588)`; `identified` combinations after them.
 pub(crate) fn intervals(params: &serde_json::Value, ci95: &serde_json::Value) -> String {
     let (parameters, identified) = numbers::intervals(params, ci95);
-    let end = |v: Option<f64>| v.map_or("?".to_string(), sig);
     let mut parts: Vec<String> = parameters
         .iter()
         .map(|p| {
             if p.lo.is_none() && p.hi.is_none() {
                 format!("{} {} (not bounded)", p.name, sig(p.value))
             } else {
-                format!(
-                    "{} {} ({} to {})",
-                    p.name,
-                    sig(p.value),
-                    end(p.lo),
-                    end(p.hi)
-                )
+                let [v, lo, hi] =
+                    sig_interval(p.value, p.lo, p.hi).map(|x| x.unwrap_or("?".into()));
+                format!("{} {v} ({lo} to {hi})", p.name)
             }
         })
         .collect();
     for c in &identified {
-        let nan = |v: Option<f64>| sig(v.unwrap_or(f64::NAN));
-        parts.push(format!(
-            "identified {} {} ({} to {})",
-            c.name,
-            sig(c.value),
-            nan(c.lo),
-            nan(c.hi)
-        ));
+        let [v, lo, hi] =
+            sig_interval(c.value, c.lo, c.hi).map(|x| x.unwrap_or_else(|| sig(f64::NAN)));
+        parts.push(format!("identified {} {v} ({lo} to {hi})", c.name));
     }
     parts.join(", ")
 }

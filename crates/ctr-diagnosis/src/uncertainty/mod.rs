@@ -51,7 +51,7 @@ pub(crate) mod suggest;
 use crate::candidates::{EffectId, Label};
 use crate::fit::{robust_information, Problem};
 use crate::quantiles::t975;
-use crate::report::numbers::sig;
+use crate::report::numbers::sig_beside;
 use crate::report::Correlated;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
@@ -125,9 +125,9 @@ impl Combination {
         format!(
             "{} = {} ({} to {})",
             self.name,
-            sig(self.value),
-            sig(self.ci95[0]),
-            sig(self.ci95[1])
+            sig_beside(self.value, &self.ci95),
+            sig_beside(self.ci95[0], &[self.value, self.ci95[1]]),
+            sig_beside(self.ci95[1], &[self.value, self.ci95[0]])
         )
     }
 }

@@ -26,7 +26,7 @@
 //! proposed only when it shrinks their intervals by [`MIN_SHRINK`] on average.
 
 use crate::fit::Problem;
-use crate::report::numbers::sig;
+use crate::report::numbers::sig_beside;
 use crate::report::{ExpectedInterval, JointRun, SuggestedRun};
 use crate::uncertainty::{parts, pseudo_inverse, Assessment, CORRELATED_ABOVE};
 use ctr_formats::{RecordedRow, Recording, Run};
@@ -511,17 +511,26 @@ fn expected_intervals(a: &Assessment, targets: &[usize], var: &[f64]) -> Vec<Exp
 /// Why the run is suggested: each uncertain parameter with its interval now and the
 /// one expected.
 fn why(expected: &[ExpectedInterval]) -> String {
-    let show = |ci: [Option<f64>; 2]| match ci {
-        [Some(lo), Some(hi)] => format!("{} to {}", sig(lo), sig(hi)),
-        _ => "not identified".into(),
-    };
     expected
         .iter()
         .map(|e| {
+            let all: Vec<f64> = e
+                .ci95_now
+                .iter()
+                .chain(&e.ci95_expected)
+                .flatten()
+                .copied()
+                .collect();
+            let show = |ci: [Option<f64>; 2]| match ci {
+                [Some(lo), Some(hi)] => {
+                    format!("{} to {}", sig_beside(lo, &all), sig_beside(hi, &all))
+                }
+                _ => "not identified".into(),
+            };
             format!(
                 "{} {} ({} now, {} expected)",
                 e.parameter,
-                sig(e.value),
+                sig_beside(e.value, &all),
                 show(e.ci95_now),
                 show(e.ci95_expected)
             )
