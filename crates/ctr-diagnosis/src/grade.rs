@@ -113,9 +113,17 @@ const ON_BOUND_STEPS: f64 = 1e-3;
 /// lag, the log of a factor): the data pushed it as far as the fit lets it go (a
 /// stiffness a seventh of the catalogue's, gravity at five times the earth's). Not
 /// counted: an angle whose bounds are where it wraps (a rotation offset at +/-180 deg
-/// is a place on the circle, not a limit), and a parameter not identified alone
-/// (`unidentified`, where known: its value is not what the data say).
-fn on_bounds(problem: &Problem, x: &[f64], unidentified: Option<&[bool]>) -> Vec<EffectId> {
+/// is a place on the circle, not a limit), and a parameter that directions the data do
+/// not see can move off the bound within the fit's bounds (`free(j, bound, within)`,
+/// where known: its place there is the fit's arbitrary choice, not the data's push).
+/// A parameter not identified alone still counts where no such move frees it: every
+/// stiffness factor may scale together, but with tube 1's at its upper bound and tube
+/// 3's at its lower one their ratio is as far as the bounds let it go.
+fn on_bounds(
+    problem: &Problem,
+    x: &[f64],
+    free: Option<&dyn Fn(usize, f64, f64) -> bool>,
+) -> Vec<EffectId> {
     let n = problem.n_tubes();
     let mut out = Vec::new();
     let mut at = 0;
@@ -123,11 +131,14 @@ fn on_bounds(problem: &Problem, x: &[f64], unidentified: Option<&[bool]>) -> Vec
         let len = problem.block_len(b);
         let on_bound = (at..at + len).any(|j| {
             let (step, (lo, hi)) = problem.scale(j);
+            let within = ON_BOUND_STEPS * step;
             let on = |bound: f64| {
-                bound != 0.0 && bound.is_finite() && (x[j] - bound).abs() <= ON_BOUND_STEPS * step
+                bound != 0.0
+                    && bound.is_finite()
+                    && (x[j] - bound).abs() <= within
+                    && !free.is_some_and(|f| f(j, bound, within))
             };
-            let counted = !b.wraps(n, j - at) && !unidentified.is_some_and(|u| u[j]);
-            counted && (on(lo) || on(hi))
+            !b.wraps(n, j - at) && (on(lo) || on(hi))
         });
         if on_bound {
             out.push(b);
@@ -139,8 +150,8 @@ fn on_bounds(problem: &Problem, x: &[f64], unidentified: Option<&[bool]>) -> Vec
 
 /// Grades the established `findings` by their intervals ([`by_intervals`]), then lowers
 /// to predictive every one whose effect has a parameter on a bound of its fit at
-/// `fitted`, `problem`'s model ([`on_bounds`], the parameters `assessment` found not
-/// identified alone left out, when computed): the fit's value is not a minimum the data
+/// `fitted`, `problem`'s model ([`on_bounds`], the parameters that `assessment`'s
+/// directions not seen move off their bound left out, when computed): the fit's value is not a minimum the data
 /// place inside the plausible range, its interval is cut by the bound, and an effect
 /// pushed that far most likely stands in for something else.
 pub(crate) fn by_evidence(
@@ -150,8 +161,12 @@ pub(crate) fn by_evidence(
     assessment: Option<&Assessment>,
 ) {
     by_intervals(findings);
-    let unidentified = assessment.map(|a| a.unidentified.as_slice());
-    let on_bound = on_bounds(problem, &problem.read(fitted), unidentified);
+    let x = problem.read(fitted);
+    let free = |j: usize, bound: f64, within: f64| {
+        assessment.is_some_and(|a| a.free_to_leave(j, &x, bound, within))
+    };
+    let known: Option<&dyn Fn(usize, f64, f64) -> bool> = assessment.map(|_| &free as _);
+    let on_bound = on_bounds(problem, &x, known);
     lower_on_bound(findings, &on_bound);
 }
 
@@ -264,7 +279,7 @@ mod tests {
     }
 
     #[test]
-    fn on_a_bound_counts_limits_not_wraps_nor_unidentified() {
+    fn on_a_bound_counts_limits_not_wraps_nor_what_unseen_directions_free() {
         use crate::synth::{record, CommandedRun, SynthSpec};
         let spec = ctr_formats::RobotSpec::from_toml_str(
             "[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\nlength_mm = 200.0\n\
@@ -293,7 +308,9 @@ mod tests {
         let (_, (ln_lo, _)) = problem.scale(0);
         let (_, (_, feed_hi)) = problem.scale(1);
         // x: ln stiffness factor, feed offset, rotation offset
-        let on = |x: [f64; 3], unidentified: Option<&[bool]>| on_bounds(&problem, &x, unidentified);
+        let on = |x: [f64; 3], free: Option<&dyn Fn(usize, f64, f64) -> bool>| {
+            on_bounds(&problem, &x, free)
+        };
         assert_eq!(on([0.1, 0.2, 30.0], None), vec![]);
         assert_eq!(on([ln_lo, 0.2, 30.0], None), vec![EffectId::Stiffness]);
         assert_eq!(
@@ -308,7 +325,14 @@ mod tests {
             vec![],
             "a rotation wraps there"
         );
-        let unidentified = [true, false, false];
-        assert_eq!(on([ln_lo, 0.2, 30.0], Some(&unidentified)), vec![]);
+        // the stiffness factor free to leave its bound along a direction not seen
+        let free = |j: usize, _: f64, _: f64| j == 0;
+        assert_eq!(on([ln_lo, 0.2, 30.0], Some(&free)), vec![]);
+        // held there: it counts
+        let held = |_: usize, _: f64, _: f64| false;
+        assert_eq!(
+            on([ln_lo, 0.2, 30.0], Some(&held)),
+            vec![EffectId::Stiffness]
+        );
     }
 }

@@ -440,6 +440,43 @@ impl Assessment {
         })
     }
 
+    /// Whether parameter `j`, at `bound` of its fit at `x`, can leave it by more than
+    /// `within` along a direction the data do not see while every parameter stays within
+    /// the fit's bounds: then its place on the bound is the fit's arbitrary choice, not
+    /// the data's push. An identified parameter cannot.
+    pub(crate) fn free_to_leave(&self, j: usize, x: &[f64], bound: f64, within: f64) -> bool {
+        if !self.unidentified[j] {
+            return false;
+        }
+        let (lo, hi) = self.bounds[j];
+        let inward = if (bound - hi).abs() < (bound - lo).abs() {
+            -1.0
+        } else {
+            1.0
+        };
+        self.unseen.directions.iter().any(|u| {
+            if u[j] == 0.0 {
+                return false;
+            }
+            // along `sign u`, parameter j moves inward
+            let sign = inward * u[j].signum();
+            let reach = u.iter().zip(&self.bounds).zip(x).fold(
+                f64::INFINITY,
+                |reach, ((&uk, &(lo, hi)), &xk)| {
+                    let d = sign * uk;
+                    if d > 0.0 {
+                        reach.min((hi - xk) / d)
+                    } else if d < 0.0 {
+                        reach.min((xk - lo) / -d)
+                    } else {
+                        reach
+                    }
+                },
+            );
+            reach.max(0.0) * u[j].abs() > within
+        })
+    }
+
     /// The 95 % interval of fitted parameter `j` (the fit's bounds when not identified).
     pub fn interval(&self, j: usize) -> (f64, f64) {
         let (lo, hi) = self.bounds[j];

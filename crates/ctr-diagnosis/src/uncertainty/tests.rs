@@ -168,3 +168,18 @@ fn parameters_unseen_each_alone_are_stated_once() {
     );
     assert!(a.combinations().is_empty());
 }
+
+/// A parameter on a bound of its fit is free to leave it where a direction the data do
+/// not see moves it inward with the others inside their bounds, and held there where
+/// that direction pushes another through its own bound (tube 1's stiffness at its upper
+/// bound and tube 3's at its lower one: their ratio is pinned by the bounds).
+#[test]
+fn a_bound_held_by_another_parameters_bound_is_not_free() {
+    use nalgebra::DVector;
+    let ab = DVector::from_vec(vec![1.0, 1.0, 0.0]);
+    let a = with_null(vec![ab]);
+    assert!(a.free_to_leave(0, &[1.0, 0.0, 0.0], 1.0, 1e-3));
+    assert!(!a.free_to_leave(0, &[1.0, -1.0, 0.0], 1.0, 1e-3));
+    assert!(!a.free_to_leave(1, &[1.0, -1.0, 0.0], -1.0, 1e-3));
+    assert!(!a.free_to_leave(2, &[0.0, 0.0, 1.0], 1.0, 1e-3), "no direction moves c");
+}
