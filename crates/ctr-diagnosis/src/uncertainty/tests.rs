@@ -181,5 +181,8 @@ fn a_bound_held_by_another_parameters_bound_is_not_free() {
     assert!(a.free_to_leave(0, &[1.0, 0.0, 0.0], 1.0, 1e-3));
     assert!(!a.free_to_leave(0, &[1.0, -1.0, 0.0], 1.0, 1e-3));
     assert!(!a.free_to_leave(1, &[1.0, -1.0, 0.0], -1.0, 1e-3));
-    assert!(!a.free_to_leave(2, &[0.0, 0.0, 1.0], 1.0, 1e-3), "no direction moves c");
+    assert!(
+        !a.free_to_leave(2, &[0.0, 0.0, 1.0], 1.0, 1e-3),
+        "no direction moves c"
+    );
 }
