@@ -509,9 +509,15 @@ fn expected_intervals(a: &Assessment, targets: &[usize], var: &[f64]) -> Vec<Exp
 }
 
 /// Why the run is suggested: each uncertain parameter with its interval now and the
-/// one expected.
+/// one expected; those not identified now nor after it (a feed play of a tube that
+/// never moves, a common factor of every stiffness) named once at the end, without
+/// their values.
 fn why(expected: &[ExpectedInterval]) -> String {
-    expected
+    let unidentified = |ci: &[Option<f64>; 2]| ci.iter().any(Option::is_none);
+    let (still, informed): (Vec<&ExpectedInterval>, Vec<&ExpectedInterval>) = expected
+        .iter()
+        .partition(|e| unidentified(&e.ci95_now) && unidentified(&e.ci95_expected));
+    let mut parts: Vec<String> = informed
         .iter()
         .map(|e| {
             let all: Vec<f64> = e
@@ -535,13 +541,44 @@ fn why(expected: &[ExpectedInterval]) -> String {
                 show(e.ci95_expected)
             )
         })
-        .collect::<Vec<_>>()
-        .join("; ")
+        .collect();
+    if !still.is_empty() {
+        let names: Vec<&str> = still.iter().map(|e| e.parameter.as_str()).collect();
+        parts.push(format!(
+            "not identified now nor after it: {}",
+            names.join(", ")
+        ));
+    }
+    parts.join("; ")
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The reasons give each parameter the run informs with its intervals, and name the
+    /// ones it leaves unidentified once, at the end, without values.
+    #[test]
+    fn parameters_the_run_leaves_unseen_are_named_once() {
+        let e = |name: &str, now: [Option<f64>; 2], after: [Option<f64>; 2]| ExpectedInterval {
+            parameter: name.into(),
+            value: 0.5,
+            ci95_now: now,
+            ci95_expected: after,
+        };
+        let reasons = why(&[
+            e("a", [Some(0.0), Some(1.0)], [Some(0.25), Some(0.75)]),
+            e("b", [None, None], [None, None]),
+            e("c", [None, None], [Some(0.1), Some(0.9)]),
+            e("d", [None, None], [None, None]),
+        ]);
+        assert_eq!(
+            reasons,
+            "a 0.5000 (0 to 1.000 now, 0.2500 to 0.7500 expected); \
+             c 0.5000 (not identified now, 0.1000 to 0.9000 expected); \
+             not identified now nor after it: b, d"
+        );
+    }
 
     #[test]
     fn out_and_back_returns_to_its_start() {
