@@ -3,8 +3,9 @@
 use crate::candidates::{not_applicable, EffectId};
 use crate::error::DiagnoseError;
 use crate::finish::{finish, WhereLeft};
-use crate::fit::{Fitted, Problem, MAX_FIT_ITERATIONS};
+use crate::fit::{Problem, MAX_FIT_ITERATIONS};
 use crate::found::Found;
+use crate::levenberg::Fitted;
 use crate::locate;
 use crate::options::Options;
 use crate::report::prose::{explain, parameters};

@@ -25,8 +25,7 @@
 //! [`crate::levenberg`]'s, which this module's [`Problem`] feeds.
 
 use crate::candidates::EffectId;
-use crate::levenberg::{self, huber, Residuals};
-pub(crate) use crate::levenberg::{projected_gain, robust_information, Fitted};
+use crate::levenberg::{self, huber, Fitted, Residuals};
 use crate::residual::angular_errors;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::{predict_rows_on, Prediction};

@@ -114,15 +114,15 @@ const ON_BOUND_STEPS: f64 = 1e-3;
 /// stiffness a seventh of the catalogue's, gravity at five times the earth's). Not
 /// counted: an angle whose bounds are where it wraps (a rotation offset at +/-180 deg
 /// is a place on the circle, not a limit), and a parameter that directions the data do
-/// not see can move off the bound within the fit's bounds (`free(j, bound, within)`,
-/// where known: its place there is the fit's arbitrary choice, not the data's push).
+/// not see can move off the bound within the fit's bounds (`free(j, bound, within)`:
+/// its place there is the fit's arbitrary choice, not the data's push).
 /// A parameter not identified alone still counts where no such move frees it: every
 /// stiffness factor may scale together, but with tube 1's at its upper bound and tube
 /// 3's at its lower one their ratio is as far as the bounds let it go.
 fn on_bounds(
     problem: &Problem,
     x: &[f64],
-    free: Option<&dyn Fn(usize, f64, f64) -> bool>,
+    free: impl Fn(usize, f64, f64) -> bool,
 ) -> Vec<EffectId> {
     let n = problem.n_tubes();
     let mut out = Vec::new();
@@ -136,7 +136,7 @@ fn on_bounds(
                 bound != 0.0
                     && bound.is_finite()
                     && (x[j] - bound).abs() <= within
-                    && !free.is_some_and(|f| f(j, bound, within))
+                    && !free(j, bound, within)
             };
             !b.wraps(n, j - at) && (on(lo) || on(hi))
         });
@@ -150,10 +150,11 @@ fn on_bounds(
 
 /// Grades the established `findings` by their intervals ([`by_intervals`]), then lowers
 /// to predictive every one whose effect has a parameter on a bound of its fit at
-/// `fitted`, `problem`'s model ([`on_bounds`], the parameters that `assessment`'s
-/// directions not seen move off their bound left out, when computed): the fit's value is not a minimum the data
-/// place inside the plausible range, its interval is cut by the bound, and an effect
-/// pushed that far most likely stands in for something else.
+/// `fitted`, `problem`'s model ([`on_bounds`]; left out, when `assessment` was
+/// computed, the parameters its directions not seen move off their bound): the fit's
+/// value is not a minimum the data place inside the plausible range, its interval is
+/// cut by the bound, and an effect pushed that far most likely stands in for something
+/// else.
 pub(crate) fn by_evidence(
     findings: &mut [Finding],
     problem: &Problem,
@@ -162,11 +163,9 @@ pub(crate) fn by_evidence(
 ) {
     by_intervals(findings);
     let x = problem.read(fitted);
-    let free = |j: usize, bound: f64, within: f64| {
+    let on_bound = on_bounds(problem, &x, |j, bound, within| {
         assessment.is_some_and(|a| a.free_to_leave(j, &x, bound, within))
-    };
-    let known: Option<&dyn Fn(usize, f64, f64) -> bool> = assessment.map(|_| &free as _);
-    let on_bound = on_bounds(problem, &x, known);
+    });
     lower_on_bound(findings, &on_bound);
 }
 
@@ -307,32 +306,29 @@ mod tests {
         };
         let (_, (ln_lo, _)) = problem.scale(0);
         let (_, (_, feed_hi)) = problem.scale(1);
-        // x: ln stiffness factor, feed offset, rotation offset
-        let on = |x: [f64; 3], free: Option<&dyn Fn(usize, f64, f64) -> bool>| {
-            on_bounds(&problem, &x, free)
-        };
-        assert_eq!(on([0.1, 0.2, 30.0], None), vec![]);
-        assert_eq!(on([ln_lo, 0.2, 30.0], None), vec![EffectId::Stiffness]);
+        // x: ln stiffness factor, feed offset, rotation offset; nothing freed by
+        // directions not seen unless said
+        let held = |_: usize, _: f64, _: f64| false;
+        let on =
+            |x: [f64; 3], free: &dyn Fn(usize, f64, f64) -> bool| on_bounds(&problem, &x, free);
+        assert_eq!(on([0.1, 0.2, 30.0], &held), vec![]);
+        assert_eq!(on([ln_lo, 0.2, 30.0], &held), vec![EffectId::Stiffness]);
         assert_eq!(
-            on([ln_lo + 1e-6, 0.2, 30.0], None),
+            on([ln_lo + 1e-6, 0.2, 30.0], &held),
             vec![EffectId::Stiffness],
             "just inside"
         );
-        assert_eq!(on([ln_lo + 0.1, 0.2, 30.0], None), vec![]);
-        assert_eq!(on([0.1, feed_hi, 30.0], None), vec![EffectId::JointOffset]);
+        assert_eq!(on([ln_lo + 0.1, 0.2, 30.0], &held), vec![]);
+        assert_eq!(on([0.1, feed_hi, 30.0], &held), vec![EffectId::JointOffset]);
         assert_eq!(
-            on([0.1, 0.2, 180.0], None),
+            on([0.1, 0.2, 180.0], &held),
             vec![],
             "a rotation wraps there"
         );
         // the stiffness factor free to leave its bound along a direction not seen
         let free = |j: usize, _: f64, _: f64| j == 0;
-        assert_eq!(on([ln_lo, 0.2, 30.0], Some(&free)), vec![]);
+        assert_eq!(on([ln_lo, 0.2, 30.0], &free), vec![]);
         // held there: it counts
-        let held = |_: usize, _: f64, _: f64| false;
-        assert_eq!(
-            on([ln_lo, 0.2, 30.0], Some(&held)),
-            vec![EffectId::Stiffness]
-        );
+        assert_eq!(on([ln_lo, 0.2, 30.0], &held), vec![EffectId::Stiffness]);
     }
 }

@@ -27,7 +27,8 @@
 //! tolerance, at a fraction of the time.
 
 use crate::candidates::EffectId;
-use crate::fit::{projected_gain, Fitted, Problem, MAX_FIT_ITERATIONS};
+use crate::fit::{Problem, MAX_FIT_ITERATIONS};
+use crate::levenberg::{projected_gain, Fitted};
 use crate::residual::components;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::Recording;

@@ -49,9 +49,10 @@ pub(crate) mod attach;
 pub(crate) mod suggest;
 
 use crate::candidates::{EffectId, Label};
-use crate::fit::{robust_information, Problem};
+use crate::fit::Problem;
+use crate::levenberg::robust_information;
 use crate::quantiles::t975;
-use crate::report::numbers::sig_beside;
+use crate::report::numbers::sig_interval;
 use crate::report::Correlated;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
@@ -122,13 +123,9 @@ impl Combination {
 
     /// `name = value (lo to hi)`.
     fn words(&self) -> String {
-        format!(
-            "{} = {} ({} to {})",
-            self.name,
-            sig_beside(self.value, &self.ci95),
-            sig_beside(self.ci95[0], &[self.value, self.ci95[1]]),
-            sig_beside(self.ci95[1], &[self.value, self.ci95[0]])
-        )
+        let [v, lo, hi] = sig_interval(self.value, Some(self.ci95[0]), Some(self.ci95[1]))
+            .map(Option::unwrap_or_default);
+        format!("{} = {v} ({lo} to {hi})", self.name)
     }
 }
 
@@ -455,25 +452,10 @@ impl Assessment {
             1.0
         };
         self.unseen.directions.iter().any(|u| {
-            if u[j] == 0.0 {
-                return false;
-            }
             // along `sign u`, parameter j moves inward
             let sign = inward * u[j].signum();
-            let reach = u.iter().zip(&self.bounds).zip(x).fold(
-                f64::INFINITY,
-                |reach, ((&uk, &(lo, hi)), &xk)| {
-                    let d = sign * uk;
-                    if d > 0.0 {
-                        reach.min((hi - xk) / d)
-                    } else if d < 0.0 {
-                        reach.min((xk - lo) / -d)
-                    } else {
-                        reach
-                    }
-                },
-            );
-            reach.max(0.0) * u[j].abs() > within
+            let d: Vec<f64> = u.iter().map(|uk| sign * uk).collect();
+            u[j] != 0.0 && unseen::reach(x, &d, &self.bounds) * u[j].abs() > within
         })
     }
 

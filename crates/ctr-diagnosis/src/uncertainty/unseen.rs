@@ -243,18 +243,10 @@ fn toward_nominal(
     else {
         return (x.to_vec(), Tie::Fitted);
     };
+    // toward the nominal: -step, no further than all of it
     let step = basis * solved;
-    // the longest part of the step that stays inside the bounds
-    let mut reach: f64 = 1.0;
-    for j in 0..np {
-        let (lo, hi) = bounds[j];
-        if step[j] > 0.0 {
-            reach = reach.min((x[j] - lo) / step[j]);
-        } else if step[j] < 0.0 {
-            reach = reach.min((x[j] - hi) / step[j]);
-        }
-    }
-    let reach = reach.max(0.0);
+    let toward: Vec<f64> = step.iter().map(|d| -d).collect();
+    let reach = reach(x, &toward, bounds).min(1.0);
     let tie = if reach >= 1.0 {
         Tie::Nominal
     } else if reach > 0.0 {
@@ -264,6 +256,24 @@ fn toward_nominal(
     };
     let moved = (0..np).map(|j| x[j] - reach * step[j]).collect();
     (moved, tie)
+}
+
+/// How far `x` can go along `d` (as a multiple of it, `>= 0`; infinite where `d` is
+/// zero) with every parameter within `bounds`.
+pub(super) fn reach(x: &[f64], d: &[f64], bounds: &[(f64, f64)]) -> f64 {
+    x.iter()
+        .zip(d)
+        .zip(bounds)
+        .fold(f64::INFINITY, |reach, ((&x, &d), &(lo, hi))| {
+            if d > 0.0 {
+                reach.min((hi - x) / d)
+            } else if d < 0.0 {
+                reach.min((lo - x) / d)
+            } else {
+                reach
+            }
+        })
+        .max(0.0)
 }
 
 #[cfg(test)]
