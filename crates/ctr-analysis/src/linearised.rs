@@ -75,7 +75,9 @@ pub enum Moving {
     /// Jacobian.
     Joints,
     /// The tubes' stiffness and precurvature factors: the parameter Jacobian
-    /// (unloaded rows only).
+    /// (unloaded rows only). Where the friction grows with the contact moment the
+    /// factors move the actual joints too, and the rows are linearised as
+    /// [`Moving::Both`].
     Scales,
     /// Both the joints and the scales.
     Both,
@@ -194,6 +196,7 @@ impl Linearised {
         if learned(model) {
             return Ok(None);
         }
+        let moving = carried(model, moving);
         let loaded = loaded(model, rec, rows);
         if loaded && moving.scales() {
             return Ok(None);
@@ -296,7 +299,7 @@ impl Linearised {
             return None;
         }
         let loaded = loaded(model, rec, rows);
-        match moving {
+        match carried(model, moving) {
             Moving::Measurement => Some(1.0),
             Moving::Joints if loaded => Some((1 + 2 * 2 * model.robot.n_tubes()) as f64),
             Moving::Joints => Some(ANALYTIC_SOLVES),
@@ -464,6 +467,23 @@ fn factors(model: &ModelSpec) -> (Vec<f64>, Vec<f64>) {
 pub const PROBE_MM: f64 = 1e-3;
 /// Probe step of a rotation under a load, degrees (as [`PROBE_MM`]).
 pub const PROBE_DEG: f64 = 1e-3;
+
+/// What a linearisation of `model` must carry to move as `moving` says: where its
+/// friction grows with the contact moment, the moment is the scaled tubes' (the
+/// timeline's [`crate::contact::Contact`]), so a change of the stiffness or
+/// precurvature factors moves each row's actual joints too, and the scales come with
+/// the joint Jacobian ([`Moving::Both`]).
+fn carried(model: &ModelSpec, moving: Moving) -> Moving {
+    let contact = model
+        .effects
+        .friction
+        .as_ref()
+        .is_some_and(|f| f.grows_with_contact());
+    match moving {
+        Moving::Scales if contact => Moving::Both,
+        other => other,
+    }
+}
 
 /// Whether `model` has a learned discrepancy or an empirical correction: terms on the
 /// commanded joints after the measurement, which are not linearised.

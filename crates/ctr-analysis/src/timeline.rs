@@ -76,9 +76,8 @@ impl TimeEffects {
             for (i, w) in f.feed_play_mm.iter().enumerate().take(n) {
                 t.feed_play_mm[i] = *w;
             }
-            let mu = &f.rotation_friction_coefficient;
-            if mu.iter().any(|&m| m > 0.0) {
-                t.contact = Some(Contact::of(robot, mu));
+            if f.grows_with_contact() {
+                t.contact = Some(Contact::of(robot, &f.rotation_friction_coefficient));
             }
         }
         t

@@ -336,6 +336,32 @@ fn each_way_refuses_what_it_does_not_carry() {
 }
 
 #[test]
+fn where_friction_grows_with_the_contact_moment_the_scales_move_the_joints_too() {
+    // the contact moment is the scaled tubes': a softer tube 2 changes the plays, so
+    // each row's actual joints, besides its mechanics
+    let (mut m, rec, rows) = scaled_setting();
+    m.effects
+        .friction
+        .as_mut()
+        .unwrap()
+        .rotation_friction_coefficient = vec![0.02, 0.03];
+    let lin = Linearised::moving(&m, &rec, &rows, 2, Moving::Scales)
+        .unwrap()
+        .expect("unloaded");
+    let worst = at_the_point(&lin, &m, &rec, &rows);
+    assert!(worst < 1e-9, "at the point: {worst} apart");
+    for (name, step) in scale_steps(&m) {
+        let gap = apart(&lin, &rec, &rows, &step);
+        assert!(gap <= LINEARISATION, "{name}: {gap:.2e} apart");
+    }
+    let both = Linearised::cost_per_row(&m, &rec, &rows, Moving::Both);
+    assert_eq!(
+        Linearised::cost_per_row(&m, &rec, &rows, Moving::Scales),
+        both
+    );
+}
+
+#[test]
 fn under_gravity_the_scales_are_not_linearised() {
     let (mut m, rec, rows) = scaled_setting();
     m.effects.clearance = None;

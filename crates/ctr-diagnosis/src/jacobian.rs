@@ -194,12 +194,81 @@ struct Moves {
 impl Moves {
     /// `problem`'s predictions at `x` (differing from where the rows were linearised
     /// only in effects that leave the mechanics alone); `None` where its joints leave
-    /// the robot's ranges.
+    /// the robot's ranges. A model the linearisation does not carry is solved, as the
+    /// columns that are not linearised: never taken for one that cannot be simulated
+    /// (which would hold its parameter still).
     fn predictions(&self, problem: &Problem, x: &[f64]) -> Option<Vec<f64>> {
-        let pred = self
-            .linearised
-            .predict(&problem.model(x), problem.rec)
-            .ok()??;
-        problem.assembled(&pred, x)
+        match self.linearised.predict(&problem.model(x), problem.rec) {
+            Ok(Some(pred)) => problem.assembled(&pred, x),
+            Ok(None) => problem.predictions_on(x, 1),
+            Err(_) => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::candidates::EffectId;
+    use crate::fit::Problem;
+    use crate::synth::{generate, Ranges, SynthSpec};
+    use ctr_analysis::model::ModelSpec;
+    use ctr_formats::Friction;
+
+    /// A fit of the stiffness factors alone (a candidate's screen) on a model whose
+    /// friction grows with the contact moment: the factors move the plays too, and the
+    /// columns taken without solving are the solved central differences (they were
+    /// zero, the parameters held still, while the linearisation left that out).
+    #[test]
+    fn stiffness_columns_beside_the_contact_friction_are_the_solved_ones() {
+        let text = include_str!("../../../data/robots/nitinol3.toml");
+        let spec = ctr_formats::RobotSpec::from_toml_str(text, "nitinol3.toml").unwrap();
+        let mut user = ModelSpec::from_spec(&spec);
+        user.effects.friction = Some(Friction {
+            rotation_play_deg: vec![1.0, 1.0],
+            feed_play_mm: vec![],
+            rotation_friction_coefficient: vec![0.02, 0.03],
+        });
+        // three factors: their columns are linearised (two saved solves each of a row
+        // outweigh the parameter Jacobian's cost)
+        let ranges = Ranges {
+            increments_mm: vec![[10.0, 50.0]; 3],
+            theta_deg: [-180.0, 180.0],
+        };
+        let mut world = user.clone();
+        EffectId::Stiffness.write(&mut world, &[1.0, 0.8, 1.2]);
+        let rec = generate(&world, &ranges, &SynthSpec::default())
+            .unwrap()
+            .recording;
+        let problem = Problem {
+            base: user,
+            blocks: vec![EffectId::Stiffness],
+            rec: &rec,
+            rows: (0..rec.rows.len()).step_by(4).collect(),
+            huber_mm: 0.3,
+            threads: 2,
+            clearance_table: None,
+        };
+        let x = [1.0, 0.9, 1.1];
+        let p0 = problem.predictions(&x).unwrap();
+        let jac = problem.jacobian(&x, &p0).unwrap();
+        for j in 0..x.len() {
+            let h = problem.scale(j).0;
+            let at = |d: f64| {
+                let mut xs = x.to_vec();
+                xs[j] += d;
+                problem.predictions(&xs).unwrap()
+            };
+            let (up, down) = (at(h), at(-h));
+            let solved: Vec<f64> = up
+                .iter()
+                .zip(&down)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect();
+            let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
+            let size = norm(&mut solved.iter().copied());
+            let gap = norm(&mut jac.column(j).iter().zip(&solved).map(|(a, b)| a - b));
+            assert!(size > 1e-3, "factor {j} moves the tips ({size})");
+            assert!(gap <= 1e-2 * size, "factor {j}: {:.2e} apart", gap / size);
+        }
     }
 }

@@ -155,6 +155,20 @@ impl Friction {
             .chain(&self.rotation_friction_coefficient)
             .any(|&w| w > 0.0)
     }
+
+    /// Whether a pair's play grows with the contact moment (a coefficient above zero):
+    /// then the play depends on the tubes' stiffness and precurvature too, through
+    /// the moment they carry.
+    ///
+    /// ```
+    /// use ctr_formats::Friction;
+    /// let play = Friction { rotation_play_deg: vec![1.0], ..Friction::default() };
+    /// assert!(!play.grows_with_contact());
+    /// assert!(Friction { rotation_friction_coefficient: vec![0.02], ..play }.grows_with_contact());
+    /// ```
+    pub fn grows_with_contact(&self) -> bool {
+        self.rotation_friction_coefficient.iter().any(|&m| m > 0.0)
+    }
 }
 
 /// `[model.effects.clearance]`: per neighbouring pair, a cosine profile
