@@ -48,13 +48,14 @@ pub fn calibrate(
     effects: &[EffectId],
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
+    // the angular columns weighted by their noise: the one residual of the fits (and
+    // what says whether the sensor's rotation can be seen at all)
+    let (weighted, base) = crate::start::simulated(model, rec)?;
     for &c in effects {
-        if let Some(note) = not_applicable(c, model, rec) {
+        if let Some(note) = not_applicable(c, model, &weighted) {
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
-    // the angular columns weighted by their noise: the one residual of the fits
-    let (weighted, base) = crate::start::simulated(model, rec)?;
     let start = Start::new(model, &weighted, base, opt)?;
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {

@@ -48,6 +48,40 @@ fn record(world: &ModelSpec, seed: u64, unmodelled: Vec<Unmodelled>) -> Recordin
 }
 
 #[test]
+fn calibrate_fits_the_sensors_rotation_from_the_tangents() {
+    // the applicability check sees the recording as the fits do, its tangent columns
+    // weighted (it refused: 'the recording has none')
+    let mut world = two_tubes();
+    world.effects.sensor_rotation = Some(SensorRotation {
+        rotation_vector_deg: [4.0, 0.0, 0.0],
+    });
+    let rec = record(&world, 21, vec![]);
+    let opt = Options::default();
+    let d = calibrate(&two_tubes(), &rec, &[EffectId::SensorRotation], &opt).unwrap();
+    let v = d
+        .fitted
+        .effects
+        .sensor_rotation
+        .unwrap()
+        .rotation_vector_deg;
+    assert!(
+        (v[0] - 4.0).abs() < 0.3 && v[1].abs() < 0.3,
+        "fitted rotation vector {v:?} deg"
+    );
+    let err = calibrate(
+        &two_tubes(),
+        &positions_only(&rec),
+        &[EffectId::SensorRotation],
+        &opt,
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains("sensor_rotation: not tried"),
+        "{err}"
+    );
+}
+
+#[test]
 fn the_tangents_find_the_sensors_rotation_and_the_positions_cannot() {
     // the sensor turned 4 deg about the tip's x axis: its tangent tilts, its point stays
     let mut world = two_tubes();
