@@ -199,6 +199,41 @@ impl Problem<'_> {
         unreachable!("parameter index within the blocks")
     }
 
+    /// Whether the feed offsets at `x` keep the commanded feeds of every row in the
+    /// robot's ranges where they were (in their order, within the tubes' lengths). A
+    /// fit treats leaving them as a side that cannot be simulated: without friction
+    /// the solve refuses such rows, but friction's plays hold the actual feeds in
+    /// their order (a tube cannot pass the next), so an offset past that edge would
+    /// be simulated with every row bent at it, and a fit parked on the bend (one-sided
+    /// derivatives that disagree) stops where its steps promise much and gain nothing.
+    pub(crate) fn feeds_in_range(&self, x: &[f64]) -> bool {
+        let Some(at) = self.block_start(EffectId::JointOffset) else {
+            return true;
+        };
+        let n = self.n_tubes();
+        let robot = &self.base.robot;
+        let mut moved = vec![0.0; 2 * n];
+        self.rec.rows.iter().all(|row| {
+            moved.copy_from_slice(&row.q);
+            for i in 0..n {
+                moved[2 * i] += x[at + i];
+            }
+            robot.validate_joints(&moved).is_ok() || robot.validate_joints(&row.q).is_err()
+        })
+    }
+
+    /// Index of the first parameter of block `b`, if it is fitted.
+    fn block_start(&self, b: EffectId) -> Option<usize> {
+        let mut at = 0;
+        for &c in &self.blocks {
+            if c == b {
+                return Some(at);
+            }
+            at += self.block_len(c);
+        }
+        None
+    }
+
     /// Predictions of the counted rows, 3 per row (only they are solved), then with
     /// weighted angular columns their angular errors, 3 per row (already relative to
     /// the measurement), then the roughness rows; `None` where the model cannot be
@@ -210,6 +245,9 @@ impl Problem<'_> {
     /// [`predictions`](Self::predictions) with the runs on `threads` workers (1 inside
     /// a job of the pool).
     pub(crate) fn predictions_on(&self, x: &[f64], threads: usize) -> Option<Vec<f64>> {
+        if !self.feeds_in_range(x) {
+            return None;
+        }
         let pred = predict_rows_on(&self.model(x), self.rec, &self.rows, threads).ok()?;
         self.assembled(&pred, x)
     }
@@ -293,6 +331,46 @@ impl Residuals for Problem<'_> {
 mod tests {
     use super::*;
     use crate::levenberg::CRITERION_RESOLUTION;
+
+    /// Friction's plays hold the actual feeds in their order, so a feed offset that
+    /// pulls tube 2 behind tube 1 can be simulated (every such row bent at the edge);
+    /// a fit's predictions treat it as the solve does without friction: not simulated
+    /// (a side held), while an offset within the ranges is predicted as before.
+    #[test]
+    fn feed_offsets_past_the_feed_order_are_not_simulated_even_with_friction() {
+        use crate::synth::{generate, Ranges, SynthSpec};
+        use ctr_analysis::simulate::predict_rows;
+        let text = include_str!("../../../data/robots/liu2023.toml");
+        let spec = ctr_formats::RobotSpec::from_toml_str(text, "liu2023.toml").unwrap();
+        let mut user = ModelSpec::from_spec(&spec);
+        user.effects.friction = Some(ctr_formats::Friction {
+            rotation_play_deg: vec![1.0],
+            feed_play_mm: vec![0.2, 0.2],
+            rotation_friction_coefficient: vec![],
+        });
+        let ranges = Ranges {
+            increments_mm: vec![[20.0, 70.0], [25.0, 95.0]],
+            theta_deg: [-180.0, 180.0],
+        };
+        let rec = generate(&user, &ranges, &SynthSpec::default())
+            .unwrap()
+            .recording;
+        let problem = Problem {
+            base: user,
+            blocks: vec![EffectId::JointOffset],
+            rec: &rec,
+            rows: (0..rec.rows.len()).step_by(5).collect(),
+            huber_mm: 0.3,
+            threads: 2,
+            clearance_table: None,
+        };
+        // tube 2 pulled back 30 mm: behind tube 1 wherever its increment is below 30
+        let behind = [0.0, -30.0, 0.0, 0.0];
+        let clamped = predict_rows(&problem.model(&behind), &rec, &problem.rows);
+        assert!(clamped.is_ok(), "the plays hold the feeds in order");
+        assert!(problem.predictions(&behind).is_none());
+        assert!(problem.predictions(&[0.0, -10.0, 0.0, 0.0]).is_some());
+    }
 
     /// A fit that stops on [`CRITERION_RESOLUTION`] leaves less than that much to gain:
     /// refitted from where it ended, the information criterion moves by less, and the

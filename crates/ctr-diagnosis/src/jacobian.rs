@@ -198,6 +198,9 @@ impl Moves {
     /// columns that are not linearised: never taken for one that cannot be simulated
     /// (which would hold its parameter still).
     fn predictions(&self, problem: &Problem, x: &[f64]) -> Option<Vec<f64>> {
+        if !problem.feeds_in_range(x) {
+            return None;
+        }
         match self.linearised.predict(&problem.model(x), problem.rec) {
             Ok(Some(pred)) => problem.assembled(&pred, x),
             Ok(None) => problem.predictions_on(x, 1),
