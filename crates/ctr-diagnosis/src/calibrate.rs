@@ -127,6 +127,18 @@ fn starts(problem: &Problem, model: &ModelSpec, start: &Start) -> Vec<Vec<f64>> 
             out.push(x.concat());
         }
     }
+    // feed offsets from the file that take rows out of the feeds' ranges (friction's
+    // plays would simulate them, a fit does not: Problem::feeds_in_range) start from
+    // zero as well
+    let offsets = problem
+        .blocks
+        .iter()
+        .position(|&b| b == EffectId::JointOffset);
+    if let Some(i) = offsets.filter(|_| !problem.feeds_in_range(&out[0])) {
+        let mut x = first.clone();
+        x[i][..n].fill(0.0);
+        out.push(x.concat());
+    }
     if problem.blocks.len() > 1 {
         out.extend(staged(problem, &first));
     }

@@ -283,17 +283,9 @@ fn identified_once(r: &ctr_diagnosis::Report) {
     }
 }
 
-/// A joint at the end of its travel (the outer tube fed its whole length) leaves one
-/// side of its offset unsolvable: the calibration differences the other side, holds the
-/// offset there, and moves the rest instead of returning its start.
-#[test]
-fn a_calibration_moves_where_a_joint_sits_at_the_end_of_its_travel() {
-    let user = two_tubes();
-    let mut world = user.clone();
-    world.effects.joint_offset = Some(ctr_formats::JointOffset {
-        feed_mm: vec![0.0, -1.5],
-        rotation_deg: vec![3.0, -4.0],
-    });
+/// A run of `world` with the outer tube at its full 180 mm throughout, the inner tube
+/// `lead_mm` to `lead_mm` + 8 mm beyond it, both turning.
+fn end_of_travel(world: &ModelSpec, lead_mm: f64) -> Recording {
     // the outer tube at its full 180 mm throughout
     let mut rows = String::from("t_s,run,s1_mm,theta1_deg,s2_mm,theta2_deg,x_mm,y_mm,z_mm\n");
     let mut rec_rows = Vec::new();
@@ -301,7 +293,7 @@ fn a_calibration_moves_where_a_joint_sits_at_the_end_of_its_travel() {
         let q = [
             180.0,
             3.0 * f64::from(k),
-            230.0 + 0.2 * f64::from(k % 40),
+            180.0 + lead_mm + 0.2 * f64::from(k % 40),
             -2.0 * f64::from(k),
         ];
         rec_rows.push(q);
@@ -319,7 +311,7 @@ fn a_calibration_moves_where_a_joint_sits_at_the_end_of_its_travel() {
             );
         }
         let probe = Recording::read(text.as_bytes(), "probe.csv", 2).unwrap();
-        predict(&world, &probe, &[0]).unwrap().p
+        predict(world, &probe, &[0]).unwrap().p
     };
     for (k, (q, p)) in rec_rows.iter().zip(&all).enumerate() {
         rows += &format!(
@@ -334,7 +326,55 @@ fn a_calibration_moves_where_a_joint_sits_at_the_end_of_its_travel() {
             p[2]
         );
     }
-    let rec = Recording::read(rows.as_bytes(), "end-of-travel.csv", 2).unwrap();
+    Recording::read(rows.as_bytes(), "end-of-travel.csv", 2).unwrap()
+}
+
+/// A robot file whose feed offsets take rows out of the feeds' order, beside friction
+/// (whose plays hold the actual feeds in order, so `fk` simulates it): the fits do not
+/// step there, so the calibration starts from zero feed offsets too instead of failing
+/// as 'cannot be simulated'.
+#[test]
+fn a_calibration_starts_inside_the_feeds_ranges_too() {
+    let play = ctr_formats::Friction {
+        rotation_play_deg: vec![1.0],
+        feed_play_mm: vec![],
+        rotation_friction_coefficient: vec![],
+    };
+    let mut world = two_tubes();
+    world.effects.friction = Some(play.clone());
+    world.effects.joint_offset = Some(ctr_formats::JointOffset {
+        feed_mm: vec![0.0, -1.5],
+        rotation_deg: vec![0.0, 0.0],
+    });
+    let rec = end_of_travel(&world, 5.0);
+    let mut user = two_tubes();
+    user.effects.friction = Some(play);
+    // tube 2 pulled 10 mm back: behind tube 1 where it leads by less
+    user.effects.joint_offset = Some(ctr_formats::JointOffset {
+        feed_mm: vec![0.0, -10.0],
+        rotation_deg: vec![0.0, 0.0],
+    });
+    assert!(
+        predict(&user, &rec, &[0]).is_ok(),
+        "the plays hold the order"
+    );
+    let d = calibrate(&user, &rec, &[EffectId::JointOffset], &Options::default()).unwrap();
+    let o = d.fitted.effects.joint_offset.unwrap();
+    assert!((o.feed_mm[1] - -1.5).abs() < 0.1, "{o:?}");
+}
+
+/// A joint at the end of its travel (the outer tube fed its whole length) leaves one
+/// side of its offset unsolvable: the calibration differences the other side, holds the
+/// offset there, and moves the rest instead of returning its start.
+#[test]
+fn a_calibration_moves_where_a_joint_sits_at_the_end_of_its_travel() {
+    let user = two_tubes();
+    let mut world = user.clone();
+    world.effects.joint_offset = Some(ctr_formats::JointOffset {
+        feed_mm: vec![0.0, -1.5],
+        rotation_deg: vec![3.0, -4.0],
+    });
+    let rec = end_of_travel(&world, 50.0);
     let d = calibrate(&user, &rec, &[EffectId::JointOffset], &Options::default()).unwrap();
     let o = d.fitted.effects.joint_offset.clone().unwrap();
     assert!(
