@@ -305,6 +305,28 @@ impl Problem<'_> {
     }
 }
 
+#[cfg(test)]
+impl<'a> Problem<'a> {
+    /// A test's problem: `blocks` over `base` against every `every`-th row of `rec`,
+    /// the Huber threshold at 0.3 mm, two threads.
+    pub(crate) fn for_test(
+        base: ModelSpec,
+        blocks: Vec<EffectId>,
+        rec: &'a Recording,
+        every: usize,
+    ) -> Self {
+        Problem {
+            base,
+            blocks,
+            rec,
+            rows: (0..rec.rows.len()).step_by(every).collect(),
+            huber_mm: 0.3,
+            threads: 2,
+            clearance_table: None,
+        }
+    }
+}
+
 impl Residuals for Problem<'_> {
     fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
         Problem::predictions(self, x)
@@ -355,15 +377,7 @@ mod tests {
         let rec = generate(&user, &ranges, &SynthSpec::default())
             .unwrap()
             .recording;
-        let problem = Problem {
-            base: user,
-            blocks: vec![EffectId::JointOffset],
-            rec: &rec,
-            rows: (0..rec.rows.len()).step_by(5).collect(),
-            huber_mm: 0.3,
-            threads: 2,
-            clearance_table: None,
-        };
+        let problem = Problem::for_test(user, vec![EffectId::JointOffset], &rec, 5);
         // tube 2 pulled back 30 mm: behind tube 1 wherever its increment is below 30
         let behind = [0.0, -30.0, 0.0, 0.0];
         let clamped = predict_rows(&problem.model(&behind), &rec, &problem.rows);
@@ -399,15 +413,7 @@ mod tests {
             ..SynthSpec::default()
         };
         let rec = generate(&world, &ranges, &synth).unwrap().recording;
-        let problem = Problem {
-            base: user,
-            blocks,
-            rec: &rec,
-            rows: (0..rec.rows.len()).collect(),
-            huber_mm: 0.3,
-            threads: 2,
-            clearance_table: None,
-        };
+        let problem = Problem::for_test(user, blocks, &rec, 1);
         let first = problem.fit(&[1.0, 1.0, 0.0], MAX_FIT_ITERATIONS).unwrap();
         let again = problem.fit(&first.x, MAX_FIT_ITERATIONS).unwrap();
         let n = (3 * rec.rows.len()) as f64;

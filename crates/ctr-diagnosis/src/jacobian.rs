@@ -242,15 +242,7 @@ mod tests {
         let rec = generate(&world, &ranges, &SynthSpec::default())
             .unwrap()
             .recording;
-        let problem = Problem {
-            base: user,
-            blocks: vec![EffectId::Stiffness],
-            rec: &rec,
-            rows: (0..rec.rows.len()).step_by(4).collect(),
-            huber_mm: 0.3,
-            threads: 2,
-            clearance_table: None,
-        };
+        let problem = Problem::for_test(user, vec![EffectId::Stiffness], &rec, 4);
         let x = [1.0, 0.9, 1.1];
         let p0 = problem.predictions(&x).unwrap();
         let jac = problem.jacobian(&x, &p0).unwrap();
