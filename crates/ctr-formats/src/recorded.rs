@@ -20,6 +20,7 @@ use crate::error::{Error, ErrorKind, Location};
 use crate::records::not_text_error;
 use crate::robot::joint_columns;
 use std::borrow::Cow;
+use std::collections::HashMap;
 use std::ops::Range;
 use std::path::Path;
 
@@ -424,6 +425,9 @@ impl Cells for ParquetCells<'_> {
 struct RowsSoFar {
     rows: Vec<RecordedRow>,
     runs: Vec<Run>,
+    /// Each run's label and its index in `runs` (a label seen before is found at once,
+    /// not by a walk over every run: a sweep may hold a run per row).
+    labels: HashMap<String, usize>,
 }
 
 impl RowsSoFar {
@@ -505,8 +509,8 @@ impl RowsSoFar {
                 r.rows.end = i + 1;
             }
             _ => {
-                if let Some(earlier) = self.runs.iter().find(|r| r.label == label) {
-                    let last = &self.rows[earlier.rows.end - 1];
+                if let Some(&earlier) = self.labels.get(label) {
+                    let last = &self.rows[self.runs[earlier].rows.end - 1];
                     return Err(at(ErrorKind::Csv {
                         message: format!(
                             "column run: run {label} starts again here after other rows (its \
@@ -516,6 +520,7 @@ impl RowsSoFar {
                         ),
                     }));
                 }
+                self.labels.insert(label.to_owned(), self.runs.len());
                 self.runs.push(Run {
                     label: label.to_owned(),
                     rows: i..i + 1,

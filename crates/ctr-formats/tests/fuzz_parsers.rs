@@ -592,15 +592,13 @@ fn recording() -> impl Strategy<Value = Rec> {
                 // a unit quaternion and tangent (within the reader's tolerance, kept as read)
                 let (qq, tt) = (unit(qq), unit(tt));
                 let mut label = if run { label } else { "all".to_owned() };
-                // a run is one stretch of rows: a label used before starts a new one
-                // only under a name of its own
+                // a new run (its clock from 0) is one stretch of rows: a label used
+                // before starts it only under a name of its own
                 if prev_label.as_deref() != Some(&label) {
                     while used.contains(&label) {
                         label.push('+');
                     }
                     used.push(label.clone());
-                }
-                if prev_label.as_deref() != Some(&label) {
                     t = 0.0;
                 }
                 t += dt;
