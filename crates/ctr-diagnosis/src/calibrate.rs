@@ -50,13 +50,14 @@ pub fn calibrate(
 ) -> Result<Diagnosis, DiagnoseError> {
     // the angular columns weighted by their noise: the one residual of the fits (and
     // what says whether the sensor's rotation can be seen at all)
-    let (weighted, base) = crate::start::simulated(model, rec)?;
+    let framed = effects.contains(&EffectId::Registration);
+    let (weighted, base, seen) = crate::start::simulated(model, rec, framed)?;
     for &c in effects {
         if let Some(note) = not_applicable(c, model, &weighted) {
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
         }
     }
-    let start = Start::new(model, &weighted, base, opt)?;
+    let start = Start::new(model, &weighted, base, seen, opt)?;
     let mut blocks: Vec<EffectId> = Vec::new();
     for &c in effects {
         if !blocks.contains(&c) {
@@ -80,6 +81,7 @@ pub fn calibrate(
         cost: fitted.cost,
         e,
         tried: Vec::new(),
+        frame_profiled: false,
     };
     Ok(finish(
         start,

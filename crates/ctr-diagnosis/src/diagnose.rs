@@ -35,16 +35,46 @@ pub fn diagnose(
     rec: &Recording,
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let (weighted, base) = simulated(model, rec)?;
-    let start = Start::new(model, &weighted, base, opt)?;
+    let framed = crate::search::frame::profiled(model, &opt.candidates);
+    let (weighted, base, seen) = simulated(model, rec, framed)?;
+    let start = Start::new(model, &weighted, base, seen, opt)?;
     let found = forward_selection(&start, &opt.candidates)?;
-    let (established, removed, assessed) = settle(&start, found.clone(), start.checks);
+    let (established, removed, assessed) = settled(&start, &found);
     let (found, only_established) = readmit(&start, found, established, removed);
     // the checks' assessment is of the established findings alone
     let assessed = assessed.filter(|_| only_established);
     let found = without_alternatives_found(found);
     let pred = with_margins(&start, &found)?;
     Ok(finish(start, found, &pred, assessed, WhereLeft::Located))
+}
+
+/// The established findings of the searched `found` ([`settle`]), revisited as the
+/// search revisits (`crate::search::backward`): a finding the checks kept only because
+/// a finding they took out held it up (a soft tube beside a strong gravity, standing in
+/// for something else) no longer pays without it, and goes too; then the rest is
+/// checked again. With the findings taken out, and the assessment of the last checks
+/// (none when the revisit took something out after them).
+fn settled(
+    start: &Start,
+    found: &Found,
+) -> (
+    Found,
+    Vec<crate::verify::Removed>,
+    Option<crate::uncertainty::Assessment>,
+) {
+    let mut all_removed = Vec::new();
+    let mut from = found.clone();
+    loop {
+        let (mut established, removed, assessed) = settle(start, from, start.checks);
+        all_removed.extend(removed);
+        let round = established.tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
+        let dropped = crate::search::backward::revisit(start, &mut established, round);
+        if dropped.is_empty() {
+            return (established, all_removed, assessed);
+        }
+        all_removed.extend(dropped);
+        from = established;
+    }
 }
 
 /// `found` without the alternatives that are themselves findings (no alternative).

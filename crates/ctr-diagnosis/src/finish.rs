@@ -26,6 +26,42 @@ pub(crate) enum WhereLeft {
     Said(&'static str),
 }
 
+/// The run the report suggests recording next for `findings` of `problem` (none
+/// without an assessment), and its joints.
+fn next_run(
+    start: &Start,
+    problem: &Problem,
+    assessment: Option<Assessment>,
+    findings: &[Finding],
+) -> (
+    Option<crate::report::SuggestedRun>,
+    Option<crate::report::JointRun>,
+) {
+    let rec = start.rec;
+    let fit_share = start.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
+    let named: Vec<EffectId> = findings.iter().map(|f| f.effect).collect();
+    assessment
+        .and_then(|a| suggest::next_run(problem, &a, &named, fit_share, sample_period(rec)))
+        .unzip()
+}
+
+/// `findings` graded by their intervals and bounds at `fitted` (`problem`'s model) and
+/// by the lab's tolerances, as the checks of `start` say.
+fn graded(
+    start: &Start,
+    findings: &mut [Finding],
+    problem: &Problem,
+    fitted: &ModelSpec,
+    assessment: Option<&Assessment>,
+) {
+    if start.checks.present {
+        grade::by_evidence(findings, problem, fitted, assessment);
+    }
+    if start.checks.within_tolerance {
+        crate::tolerance::by_tolerance(findings);
+    }
+}
+
 /// The report of `found`, `pred` its prediction of every run with stability margins.
 /// `assessed`: the uncertainty of exactly these findings on the fit rows, when the
 /// checks computed it (not computed again).
@@ -46,6 +82,8 @@ pub(crate) fn finish(
         .map(|f| f.effect)
         .collect();
     let verdict = Verdict::new(&start, &found.model, &found.e, &pred.margin, &predictive);
+    // every effect in the model (the tracker's frame too, where it is no finding)
+    let effects = found.effects();
     let Found {
         model,
         mut findings,
@@ -56,7 +94,6 @@ pub(crate) fn finish(
     } = found;
     // intervals at the fitted model; what the data cannot pin set to the nominal; an
     // unexplained remainder widens them by what it can move them by
-    let effects: Vec<_> = findings.iter().map(|f| f.effect).collect();
     let problem = uncertainty::attach::problem_of(
         rec,
         &model,
@@ -72,9 +109,13 @@ pub(crate) fn finish(
         assessed,
         (!verdict.explained).then_some(&verdict.correction),
     );
-    if start.checks.present {
-        grade::by_evidence(&mut findings, &problem, &fitted, assessment.as_ref());
-    }
+    graded(
+        &start,
+        &mut findings,
+        &problem,
+        &fitted,
+        assessment.as_ref(),
+    );
     let established = established_alone(&start, &problem, &fitted, &findings);
     // a finding its intervals lowered to predictive no longer explains anything
     let mut verdict = verdict;
@@ -84,10 +125,7 @@ pub(crate) fn finish(
             .filter(|f| f.grade == Grade::Predictive)
             .map(|f| f.effect),
     );
-    let fit_share = start.fit_rows.len() as f64 / rec.rows.len().max(1) as f64;
-    let next =
-        assessment.and_then(|a| suggest::next_run(&problem, &a, fit_share, sample_period(rec)));
-    let (suggested_run, suggested_joints) = next.unzip();
+    let (suggested_run, suggested_joints) = next_run(&start, &problem, assessment, &findings);
     let unexplained = verdict.in_words(&start, &fig, || match where_left {
         WhereLeft::Located => located_left(rec, &e, &start.fit_mask(), &pred.p),
         WhereLeft::Said(words) => words.into(),

@@ -26,6 +26,7 @@
 
 use crate::candidates::EffectId;
 use crate::levenberg::{self, huber, Fitted, Residuals};
+use crate::measurement::{self, Free, Tips, MEASUREMENT};
 use crate::residual::angular_errors;
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::simulate::{predict_rows_on, Prediction};
@@ -223,7 +224,7 @@ impl Problem<'_> {
     }
 
     /// Index of the first parameter of block `b`, if it is fitted.
-    fn block_start(&self, b: EffectId) -> Option<usize> {
+    pub(crate) fn block_start(&self, b: EffectId) -> Option<usize> {
         let mut at = 0;
         for &c in &self.blocks {
             if c == b {
@@ -267,6 +268,43 @@ impl Problem<'_> {
         }
         out.extend(self.roughness(x));
         out.iter().all(|v| v.is_finite()).then_some(out)
+    }
+
+    /// The measurement's blocks this fit profiles ([`crate::measurement`]).
+    pub(crate) fn profiled_blocks(&self) -> Free {
+        Free {
+            registration: self.block_start(EffectId::Registration),
+            offset: self.block_start(EffectId::SensorOffset),
+            rotation: self.block_start(EffectId::SensorRotation),
+        }
+    }
+
+    /// `x` with the measurement's parameters it fits solved for the others'
+    /// ([`crate::measurement`]), and the predictions there (as
+    /// [`predictions`](Self::predictions) lays them out); `x` and its predictions as
+    /// they are where the fit has none of them. `None` where the model cannot be
+    /// simulated.
+    pub(crate) fn profiled(&self, x: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
+        let free = self.profiled_blocks();
+        if free.none() {
+            return Some((x.to_vec(), self.predictions(x)?));
+        }
+        if !self.feeds_in_range(x) {
+            return None;
+        }
+        let model = self.model(x);
+        let bare = predict_rows_on(
+            &measurement::without(&model),
+            self.rec,
+            &self.rows,
+            self.threads,
+        )
+        .ok()?;
+        let tips = Tips::new(self.rec, &self.rows, &bare, self.huber_mm)?;
+        let mut x = x.to_vec();
+        let pred = measurement::profiled(&tips, &model, &bare, &free, &mut x, |j| self.scale(j).1);
+        let out = self.assembled(&pred, &x)?;
+        Some((x, out))
     }
 
     /// Errors (predicted - measured) of predictions `pred`, 3 per counted row, then the
@@ -330,6 +368,15 @@ impl<'a> Problem<'a> {
 impl Residuals for Problem<'_> {
     fn predictions(&self, x: &[f64]) -> Option<Vec<f64>> {
         Problem::predictions(self, x)
+    }
+
+    fn profiled(&self, x: Vec<f64>) -> Option<(Vec<f64>, Vec<f64>)> {
+        Problem::profiled(self, &x)
+    }
+
+    fn inner(&self, j: usize) -> bool {
+        let b = self.effect_of(j);
+        MEASUREMENT.contains(&b) && self.table(b).is_none()
     }
 
     fn errors(&self, p: &[f64]) -> Vec<f64> {

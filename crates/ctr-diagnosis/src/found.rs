@@ -4,6 +4,7 @@
 //! from it.
 
 use crate::candidates::EffectId;
+use crate::fit::MAX_FIT_ITERATIONS;
 use crate::report::prose::{explain, parameters};
 use crate::report::{Figures, Finding, Trial};
 use crate::residual::{errors, figures, RowError};
@@ -26,6 +27,10 @@ pub(crate) struct Found {
     pub e: Vec<RowError>,
     /// Every candidate tried, round by round, and the findings taken out after.
     pub tried: Vec<Trial>,
+    /// Whether the registration is the tracker's frame solved in every fit, a
+    /// nuisance in the model from the start (`crate::search::frame`): always in the
+    /// model (the last of [`effects`](Self::effects) where it is no finding).
+    pub frame_profiled: bool,
 }
 
 impl Found {
@@ -40,31 +45,39 @@ impl Found {
             cost,
             e: start.e0.clone(),
             tried: Vec::new(),
+            frame_profiled: false,
         })
     }
 
-    /// The effects found, in the order added.
+    /// The effects in the model: those found, in the order added, then the tracker's
+    /// frame where it is in the model without being a finding.
     pub(crate) fn effects(&self) -> Vec<EffectId> {
-        self.findings.iter().map(|f| f.effect).collect()
+        let mut v: Vec<EffectId> = self.findings.iter().map(|f| f.effect).collect();
+        let frame = EffectId::Registration;
+        if self.frame_profiled && !v.contains(&frame) {
+            v.push(frame);
+        }
+        v
     }
 
-    /// Whether `c` is among the effects found.
+    /// Whether `c` is in the model: among the effects found, or the tracker's frame.
     pub(crate) fn has(&self, c: EffectId) -> bool {
-        self.findings.iter().any(|f| f.effect == c)
+        self.effects().contains(&c)
     }
 
-    /// The parameters of every effect found, concatenated in the order added, as
-    /// `m` holds them.
+    /// The parameters of every effect in the model ([`effects`](Self::effects)),
+    /// concatenated in that order, as `m` holds them.
     pub(crate) fn parameters_in(&self, m: &ModelSpec) -> Vec<f64> {
-        self.findings
-            .iter()
-            .flat_map(|f| f.effect.read(m))
-            .collect()
+        self.effects().iter().flat_map(|c| c.read(m)).collect()
     }
 
     /// Takes `m` (whose error vectors are `e`) as the model found, and reads every
     /// finding's parameters and words again from it (a joint refit moves them all).
-    pub(crate) fn take(&mut self, start: &Start, m: ModelSpec, e: Vec<RowError>) {
+    pub(crate) fn take(&mut self, start: &Start, mut m: ModelSpec, e: Vec<RowError>) {
+        // the same tips with the offsets' common turn in the tracker's frame
+        if self.frame_profiled {
+            crate::measurement::gauged(&mut m, &start.user, start.rec.has_force);
+        }
         self.fig = figures(start.rec, &e, &start.held);
         self.e = e;
         for f in &mut self.findings {
@@ -72,6 +85,33 @@ impl Found {
             f.explanation = explain(f.effect, &m);
         }
         self.model = m;
+    }
+}
+
+impl Found {
+    /// The findings refitted together on the user's model from their values: whether
+    /// it took (`self` unchanged where the fit or its simulation fails).
+    pub(crate) fn refit(&mut self, start: &Start) -> bool {
+        let effects = self.effects();
+        let (m, cost) = if effects.is_empty() {
+            let Some(cost) = start.problem(start.user.clone(), vec![]).cost_at(&[]) else {
+                return false;
+            };
+            (start.user.clone(), cost)
+        } else {
+            let x0 = self.parameters_in(&self.model);
+            let p = start.problem(start.user.clone(), effects);
+            let Some(f) = p.fit(&x0, MAX_FIT_ITERATIONS) else {
+                return false;
+            };
+            (p.model(&f.x), f.cost)
+        };
+        let Some(e) = simulate(start, &m) else {
+            return false;
+        };
+        self.take(start, m, e);
+        self.cost = cost;
+        true
     }
 }
 

@@ -17,6 +17,19 @@ use nalgebra::{DMatrix, DVector};
 pub(crate) trait Residuals {
     /// The predictions at `x` (`None` where they cannot be simulated).
     fn predictions(&self, x: &[f64]) -> Option<Vec<f64>>;
+    /// `x` with its inner parameters (see [`inner`](Self::inner)) solved for the
+    /// others, and the predictions there; `x` and its predictions where it has none
+    /// (`None` where they cannot be simulated).
+    fn profiled(&self, x: Vec<f64>) -> Option<(Vec<f64>, Vec<f64>)> {
+        let p = self.predictions(&x)?;
+        Some((x, p))
+    }
+    /// Whether parameter `j` is inner: solved by [`profiled`](Self::profiled) at every
+    /// point tried, so that a step moves only the others (variable projection); its
+    /// part of a step is not damped, and it does not decide when a fit ends.
+    fn inner(&self, _j: usize) -> bool {
+        false
+    }
     /// The errors of predictions `p` (3 per row).
     fn errors(&self, p: &[f64]) -> Vec<f64>;
     /// The robust cost of errors `e` and each row's IRLS weight ([`huber`]).
@@ -84,7 +97,7 @@ pub(crate) fn fit_until<R: Residuals + ?Sized>(
         .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
         .collect();
     let start = iterate(r, x)?;
-    if np == 0 {
+    if (0..np).all(|j| r.inner(j)) {
         return Some(start.fitted(false));
     }
     let (mut now, gave_up) = descend(r, start, max_iter, target, &bounds);
@@ -141,9 +154,10 @@ fn descend<R: Residuals + ?Sized>(
     (now, false)
 }
 
-/// The fit's state at parameters `x` (`None` if they cannot be simulated).
+/// The fit's state at parameters `x`, its inner parameters solved for the others (`None`
+/// if they cannot be simulated).
 fn iterate<R: Residuals + ?Sized>(r: &R, x: Vec<f64>) -> Option<Iterate> {
-    let p = r.predictions(&x)?;
+    let (x, p) = r.profiled(x)?;
     let e = r.errors(&p);
     let (cost, w) = r.cost(&e);
     Some(Iterate {
@@ -180,7 +194,13 @@ fn damped_step<R: Residuals + ?Sized>(
     for _ in 0..12 {
         let mut a = h.clone();
         for j in 0..np {
-            a[(j, j)] += *lambda * h[(j, j)].max(1e-9 * dmax);
+            // an inner parameter is solved again at the point the step leads to: its
+            // part of the step is the Schur complement's, undamped
+            a[(j, j)] += if r.inner(j) {
+                1e-9 * dmax
+            } else {
+                *lambda * h[(j, j)].max(1e-9 * dmax)
+            };
         }
         let Some(step) = solve_step(&a, g, &now.x, bounds) else {
             *lambda *= 10.0;
@@ -193,7 +213,7 @@ fn damped_step<R: Residuals + ?Sized>(
                 let small = step
                     .iter()
                     .enumerate()
-                    .all(|(j, d)| d.abs() < 1e-3 * r.scale(j).0);
+                    .all(|(j, d)| r.inner(j) || d.abs() < 1e-3 * r.scale(j).0);
                 let steps = now.steps + 1;
                 *now = Iterate { steps, ..next };
                 // the information criterion's change, n ln(cost ratio), and what an

@@ -24,13 +24,23 @@
 //! 3. **Locate** ([`locate`]): regressions of the residual on runs, joints, exposed
 //!    lengths, relative angles (periodic), direction of motion and workspace position.
 //! 4. **Explain**: forward selection over the contract's effects the model leaves out
-//!    ([`EffectId`]). Each round fits every remaining candidate's parameters
+//!    ([`EffectId`]). The tracker's frame is no candidate: where the registration is
+//!    one, it is in the model from the start and every fit solves it in closed form at
+//!    every point it tries (`measurement`: variable projection; the sensor offset and
+//!    rotation likewise wherever they are fitted), so no account depends on how the
+//!    tracker was registered. Each round fits every remaining candidate's parameters
 //!    (`fit`: robust Levenberg-Marquardt, bounded) with the effects found so far held,
 //!    and the candidate with the lowest held-out error is added if it passes both
 //!    tests: the Bayesian information criterion on the fit rows,
 //!    `N ln(C_new / C_old) + k ln N < 0` (N residual components, k parameters, C the
-//!    robust cost), and a held-out RMS at least [`MIN_HELDOUT_GAIN`] lower. The effects
-//!    found are then refitted together. It stops when no candidate passes.
+//!    robust cost), and a held-out RMS at least [`MIN_HELDOUT_GAIN`] lower, on the
+//!    held-out rows the model so far does not miss by many times its median (`scored`:
+//!    one glitch among few held-out rows decides no choice). The effects found are then
+//!    refitted together. Where no candidate passes both, the one the criterion likes
+//!    best may enter for a look-ahead of two rounds, kept only if the model it leads
+//!    to pays over where it began. When nothing enters, every effect found is tested
+//!    again against the model without it, refitted (`search::backward`), and those
+//!    that no longer pay leave: the search revisits what it took first.
 //! 5. **Verify** (`verify`): a finding is physics only when the data say so. With the
 //!    other findings in place, each must beat the generic empirical correction of as
 //!    many parameters in its place on the held-out rows (where it leaves only noise,
@@ -42,10 +52,10 @@
 //!    out and the rest refitted, until all pass.
 //! 6. **Verdict**: `explained` is true when the held-out residual (tracker outliers set
 //!    aside) is at most [`NOISE_TOLERANCE`] times the noise estimate. When false, a
-//!    labelled empirical term (`hybrid`: linear in the joints, time and tip position,
-//!    its size chosen by cross-validation on the fit rows) is fitted on top of the
-//!    physics and reported apart as `empirical`, with its held-out RMS and dominant
-//!    terms. Tracker outliers are judged on what is left after both: rows far from the
+//!    learned discrepancy (`empirical::gp`: a Gaussian process over the joints and their
+//!    history, fitted on the fit rows) is fitted on top of the physics and reported
+//!    apart as `empirical`, with its held-out RMS and its band (the linear correction
+//!    of `hybrid`, in the joints, time and tip position, where it cannot be fitted). Tracker outliers are judged on what is left after both: rows far from the
 //!    residual's median and from their neighbours, by the residual's own robust spread.
 //! 7. **Uncertainty** (`uncertainty`): every finding's parameters get 95 % intervals
 //!    (`ci95`) from the fit's Jacobian, the larger of the classical and a
@@ -60,9 +70,11 @@
 //! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
 //! outliers), `residual` (error vectors and their figures), `angular` (the angular
 //! columns' errors and noise), `weighting` (their weight against the positions),
-//! `robust` (the median and its spread), [`locate`], `jacobian` (the fits'
-//! Jacobian), `candidates`
-//! ([`EffectId`]: each effect as a parameter block), `fit`, `search` ([`diagnose()`]),
+//! `robust` (the median and its spread), `scored` (the held-out rows a decision
+//! counts), [`locate`], `jacobian` (the fits' Jacobian), `measurement` (the
+//! measurement solved inside every fit), `candidates`
+//! ([`EffectId`]: each effect as a parameter block), `fit`, `levenberg` (its steps),
+//! `search` (forward selection, the frame, the revisit; [`diagnose()`]),
 //! `empirical` (the generic basis and matching pursuit), `verify` (the checks of a
 //! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
 //! identifiability), `numbers` (a JSON value's numbers by key path),
@@ -75,7 +87,10 @@
 //!
 //! With the `synth` feature (off by default), `synth` generates recordings with
 //! concealed effects: the proof bench of the diagnosis, used by this crate's tests and
-//! by the example that writes the bundled `data/examples/liu2023-recording.csv`.
+//! by the example that writes the bundled `data/examples/liu2023-recording.csv`; and
+//! re-frames recordings (`synth::Reframe`: a turned tracker, a moved encoder zero, a
+//! time shift, glitches) so that the true change to the model is exact, which the
+//! example `reframe` and `scripts/reframe.sh` run on a real recording.
 
 mod calibrate;
 mod candidates;
@@ -90,6 +105,7 @@ mod grade;
 mod jacobian;
 mod levenberg;
 pub mod locate;
+mod measurement;
 mod options;
 mod paired;
 mod predictive;
@@ -97,10 +113,12 @@ mod quantiles;
 mod report;
 mod residual;
 mod robust;
+mod scored;
 mod search;
 mod start;
 #[cfg(feature = "synth")]
 pub mod synth;
+mod tolerance;
 mod uncertainty;
 mod verdict;
 mod verify;
@@ -127,6 +145,10 @@ pub use report::{
 pub use search::MIN_HELDOUT_GAIN;
 pub use start::noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};
 pub use start::split::{split, Holdout};
+pub use tolerance::{
+    CURVATURE_RADIUS_TOLERANCE, DENSITY_TOLERANCE, STANDARD_GRAVITY_M_S2, TOLERANCE_SIGMAS,
+    YOUNGS_MODULUS_TOLERANCE,
+};
 pub use uncertainty::suggest::{MIN_SHRINK, SUGGESTED_ROWS, WIDE};
 pub use uncertainty::{CORRELATED_ABOVE, INDEPENDENT_BELOW, UNIDENTIFIED_EIGEN};
 pub use verify::MIN_GAIN_OVER_EMPIRICAL;

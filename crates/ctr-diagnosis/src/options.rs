@@ -31,6 +31,7 @@ pub struct Options {
 /// ```
 /// let all = ctr_diagnosis::Checks::default();
 /// assert!(all.beats_generic && all.constant && all.identified && all.present);
+/// assert!(all.within_tolerance);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Checks {
@@ -44,6 +45,10 @@ pub struct Checks {
     /// is not there (where its parameters are identified alone), and none of its
     /// parameters sits on a bound of its fit (where the interval is cut by the bound).
     pub present: bool,
+    /// None of its parameters lies more than [`TOLERANCE_SIGMAS`](crate::TOLERANCE_SIGMAS)
+    /// of the lab's tolerance from its nominal (a tube five times softer than its
+    /// datasheet stands in for something else).
+    pub within_tolerance: bool,
 }
 
 impl Default for Checks {
@@ -53,6 +58,7 @@ impl Default for Checks {
             constant: true,
             identified: true,
             present: true,
+            within_tolerance: true,
         }
     }
 }

@@ -12,12 +12,11 @@
 //! never makes one.
 
 use crate::candidates::EffectId;
-use crate::fit::MAX_FIT_ITERATIONS;
 use crate::found::{simulate, Found};
 use crate::paired::clearly_lower;
 use crate::report::Grade;
 use crate::report::REMOVED;
-use crate::residual::figures;
+use crate::scored::Scored;
 use crate::search::MIN_HELDOUT_GAIN;
 use crate::start::Start;
 use crate::verify::Removed;
@@ -75,7 +74,7 @@ pub(crate) fn readmit(
         }
     }
     if found.findings.len() < searched_findings {
-        refit(start, &mut found);
+        found.refit(start);
     }
     (found, false)
 }
@@ -106,17 +105,26 @@ impl Help {
     }
 }
 
-/// How `c` helps `found`'s prediction, if it does.
+/// How `c` helps `found`'s prediction, if it does: without it the held-out rows do
+/// worse, the others as fitted, or else refitted (what dropping it would leave: an
+/// effect that helps the fit rows but not the held-out ones, taken out, has the
+/// others take its place on the fit rows, and they may predict worse for it).
 fn helps(start: &Start, found: &Found, c: EffectId) -> Option<Help> {
-    let mut without = found.model.clone();
-    c.remove(&mut without);
-    let Some(e) = simulate(start, &without) else {
+    let mut without = found.clone();
+    without.findings.retain(|f| f.effect != c);
+    c.remove(&mut without.model);
+    let Some(e) = simulate(start, &without.model) else {
         return Some(Help::HoldsUp);
     };
-    let fig = figures(start.rec, &e, &start.held);
-    (found.fig.heldout_score() < (1.0 - MIN_HELDOUT_GAIN) * fig.heldout_score()
-        && clearly_lower(&found.e, &e, &start.held))
-    .then_some(Help::Predicts)
+    let scored = Scored::from(&found.e, &start.held);
+    let worse_without = |e: &[crate::residual::RowError]| {
+        scored.score(start.rec, &found.e) < (1.0 - MIN_HELDOUT_GAIN) * scored.score(start.rec, e)
+            && clearly_lower(&found.e, e, scored.mask())
+    };
+    if worse_without(&e) {
+        return Some(Help::Predicts);
+    }
+    (without.refit(start) && worse_without(&without.e)).then_some(Help::Predicts)
 }
 
 /// The trial that took `c` out now says it is kept as predictive.
@@ -130,20 +138,5 @@ fn mark_kept(tried: &mut [crate::report::Trial], c: EffectId) {
             "kept as predictive, not established: {}",
             &t.note[REMOVED.len()..]
         );
-    }
-}
-
-/// `found`'s findings refitted together on the user's model from their values (kept
-/// as they are when the fit or its simulation fails).
-fn refit(start: &Start, found: &mut Found) {
-    let x0 = found.parameters_in(&found.model);
-    let p = start.problem(start.user.clone(), found.effects());
-    let Some(fitted) = p.fit(&x0, MAX_FIT_ITERATIONS) else {
-        return;
-    };
-    let m = p.model(&fitted.x);
-    if let Some(e) = simulate(start, &m) {
-        found.take(start, m, e);
-        found.cost = fitted.cost;
     }
 }

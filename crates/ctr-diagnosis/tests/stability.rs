@@ -354,7 +354,7 @@ fn the_fitted_model_marks_where_the_data_snap_and_the_users_where_it_would() {
     let d = diagnose(&model, &data.recording, &opt).unwrap();
     let r = &d.report;
     let found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
-    assert_eq!(found, ["joint_offset"]);
+    assert_eq!(found, ["joint_offset"], "{}", r.summary("sweep.csv"));
     let rec = &data.recording;
     check_marks(rec, &data_jumps, &r.stability.fitted, WARN_MARGIN, "fitted");
     check_marks(

@@ -1,15 +1,25 @@
-//! The search (the method's step 4): forward selection over the effects the model leaves out. Each round
-//! every remaining candidate is screened (fitted alone beside the effects found so far,
-//! [`crate::search::screen`]), then the most promising are fitted in full with the effects
-//! found so far free, and of those the information criterion and the held-out rows
-//! both accept, the best on the held-out rows is added.
+//! The search (the method's step 4): forward selection over the effects the model leaves
+//! out. The tracker's frame comes first, and no candidate: it is in the model from the
+//! start and solved in every fit ([`frame`]). Each round every remaining candidate is
+//! screened (fitted alone beside the effects found so far, [`crate::search::screen`]),
+//! then the most promising are fitted in full with the effects found so far free, and
+//! of those the information criterion and the held-out rows both accept, the best on the
+//! held-out rows is added (the held-out rows a glitch of the model so far would decide
+//! set aside, [`crate::scored`]).
 //!
 //! Each round ([`round`]) ends with the best candidate that both tests accept, or with
 //! none. The pick is added, every effect found is refitted together (a first effect
 //! that soaked up part of another gives it back), and the finding records where it
 //! shows: the change it makes to the predictions, located. Candidates that explain the
-//! same residual as well are listed beside it ([`Alternative`]).
+//! same residual as well are listed beside it ([`Alternative`]). Where none passes
+//! both tests, the one the information criterion likes best goes in for a look-ahead
+//! ([`LOOK_AHEAD_ROUNDS`]): two effects may pay where each alone does not; it is kept
+//! only if the model the look-ahead leads to pays over where it began. When nothing
+//! enters, the effects found are revisited ([`backward`]): each must still pay its way
+//! against the model without it, refitted.
 
+pub(crate) mod backward;
+pub(crate) mod frame;
 pub(crate) mod round;
 pub(crate) mod screen;
 
@@ -22,7 +32,8 @@ use crate::paired::clearly_lower;
 use crate::report::prose::{explain, parameters};
 use crate::report::Grade;
 use crate::report::{Alternative, Finding};
-use crate::residual::{tips, RowError};
+use crate::residual::{components, tips, RowError};
+use crate::scored::Scored;
 use crate::start::Start;
 use ctr_analysis::model::ModelSpec;
 use round::{Outcome, Passing};
@@ -39,17 +50,90 @@ pub(crate) fn forward_selection(
 ) -> Result<Found, DiagnoseError> {
     let mut found = Found::user(start)
         .ok_or_else(|| DiagnoseError::Model("the user model fails on the fit rows".into()))?;
+    if frame::profiled(&start.user, candidates) {
+        frame::enter(start, &mut found, candidates);
+    }
     let mut number = 1;
+    // where a look-ahead began, and the rounds it has taken
+    let mut ahead: Option<(Found, usize)> = None;
     loop {
         let mut outcome = round::run(start, &found, number, candidates);
         found.tried.append(&mut outcome.not_applicable);
-        let Some(best) = outcome.best().cloned() else {
-            found.tried.extend(outcome.trials);
-            return Ok(found);
-        };
-        add(start, &mut found, best, outcome);
         number += 1;
+        if let Some(best) = outcome.best().cloned() {
+            add(start, &mut found, best, outcome);
+            if let Some((from, taken)) = ahead.take() {
+                if !pays_over(start, &found, &from) {
+                    ahead = Some((from, taken + 1));
+                }
+            }
+        } else if let Some(pick) = outcome
+            .best_ahead()
+            .cloned()
+            .filter(|_| ahead.as_ref().map_or(0, |a| a.1) < LOOK_AHEAD_ROUNDS)
+        {
+            // no candidate gains on the held-out rows alone: the one the criterion
+            // likes best goes in for a look-ahead (two effects may pay where each
+            // alone does not), kept only if the model it leads to pays
+            let (from, taken) = ahead.take().unwrap_or_else(|| (found.clone(), 0));
+            add(start, &mut found, pick, outcome);
+            ahead = Some((from, taken + 1));
+        } else {
+            found.tried.extend(outcome.trials);
+            if let Some((from, _)) = ahead.take() {
+                found = looked_ahead(found, from);
+            }
+            backward::revisit(start, &mut found, number);
+            return Ok(found);
+        }
+        if ahead.as_ref().is_some_and(|a| a.1 > LOOK_AHEAD_ROUNDS) {
+            let (from, _) = ahead.take().expect("a look-ahead");
+            found = looked_ahead(found, from);
+            backward::revisit(start, &mut found, number);
+            return Ok(found);
+        }
     }
+}
+
+/// Rounds a look-ahead may add effects that do not pay alone before the model it
+/// leads to must pay over where it began.
+const LOOK_AHEAD_ROUNDS: usize = 2;
+
+/// Whether `now` pays over `from` (the model where a look-ahead began) as one effect
+/// must to enter: the information criterion on the fit rows and the held-out gain.
+fn pays_over(start: &Start, now: &Found, from: &Found) -> bool {
+    let n_obs = (components(start.rec) * start.fit_rows.len()) as f64;
+    let n = start.user.robot.n_tubes();
+    let k: usize = now
+        .effects()
+        .iter()
+        .filter(|c| !from.has(**c))
+        .map(|c| c.n_params(n))
+        .sum();
+    let bic = n_obs * (now.cost / from.cost).ln() + k as f64 * n_obs.ln();
+    let scored = Scored::from(&from.e, &start.held);
+    bic < 0.0
+        && scored.score(start.rec, &now.e)
+            < (1.0 - MIN_HELDOUT_GAIN) * scored.score(start.rec, &from.e)
+}
+
+/// The model a look-ahead began at (`from`), with the trials `ended` went through
+/// and those it added said to be tried ahead.
+fn looked_ahead(ended: Found, mut from: Found) -> Found {
+    let kept = from.effects();
+    from.tried = ended.tried;
+    for t in from
+        .tried
+        .iter_mut()
+        .filter(|t| t.added && !kept.contains(&t.effect))
+    {
+        t.added = false;
+        t.note = "not kept: added for a look-ahead (the information criterion accepts it, the \
+                  held-out rows alone do not), and the model it led to did not pay over where \
+                  the look-ahead began"
+            .into();
+    }
+    from
 }
 
 /// Adds the round's pick `best` to `found`: its trial marked added, those of the
@@ -57,7 +141,11 @@ pub(crate) fn forward_selection(
 /// refitted together, and the finding with where it shows.
 fn add(start: &Start, found: &mut Found, best: Passing, outcome: Outcome) {
     let c = best.effect;
-    let equally = equally(&best, &outcome.passing, &start.held);
+    let equally = equally(
+        &best,
+        &outcome.passing,
+        &Scored::from(&found.e, &start.held),
+    );
     for mut t in outcome.trials {
         if t.effect == c {
             t.added = true;
@@ -140,13 +228,13 @@ fn refit_together(
 /// The candidates of `passing` other than `best` that explain the residual as well:
 /// held out within [`MIN_HELDOUT_GAIN`] of it (the gain the search asks of any effect)
 /// and not higher beyond chance ([`clearly_lower`]).
-fn equally(best: &Passing, passing: &[Passing], held: &[bool]) -> Vec<Alternative> {
+pub(crate) fn equally(best: &Passing, passing: &[Passing], scored: &Scored) -> Vec<Alternative> {
     passing
         .iter()
         .filter(|p| {
             p.effect != best.effect
-                && p.fig.heldout_score() * (1.0 - MIN_HELDOUT_GAIN) <= best.fig.heldout_score()
-                && !clearly_lower(&best.e, &p.e, held)
+                && p.score * (1.0 - MIN_HELDOUT_GAIN) <= best.score
+                && !clearly_lower(&best.e, &p.e, scored.mask())
         })
         .map(|p| Alternative {
             effect: p.effect,

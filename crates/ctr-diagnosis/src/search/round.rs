@@ -9,9 +9,13 @@ use crate::fit::MAX_FIT_ITERATIONS;
 use crate::found::{simulate, Found};
 use crate::report::{Figures, Trial};
 use crate::residual::{components, figures, RowError};
+use crate::scored::Scored;
 use crate::search::screen::{Screen, Screened, FULL_FITS};
 use crate::start::{sample_period, Start};
 use ctr_analysis::model::ModelSpec;
+
+/// Why a candidate the information criterion accepts is not added.
+pub(crate) const NO_HELDOUT_GAIN: &str = "not added: no gain on held-out rows";
 
 /// Why a candidate has no figures.
 const CANNOT_SIMULATE: &str = "the model cannot be simulated with this effect";
@@ -23,6 +27,8 @@ pub(crate) struct Passing {
     /// The model found so far with it, fitted.
     pub model: ModelSpec,
     pub fig: Figures,
+    /// Its held-out score over the rows the round counts ([`Scored`]).
+    pub score: f64,
     /// Robust cost on the fit rows, mm^2.
     pub cost: f64,
     /// Error vectors, every row.
@@ -37,19 +43,38 @@ pub(crate) struct Outcome {
     pub trials: Vec<Trial>,
     /// Every candidate both tests accept, in the order fitted.
     pub passing: Vec<Passing>,
+    /// The candidates fitted in full that the information criterion accepts but the
+    /// held-out rows do not (what a look-ahead may add, [`super`]), in the order fitted.
+    pub ahead: Vec<Passing>,
 }
 
 impl Outcome {
-    /// The candidate of lowest held-out RMS that both tests accept (the first of
+    /// The candidate of lowest held-out score that both tests accept (the first of
     /// equals).
     pub(crate) fn best(&self) -> Option<&Passing> {
-        self.passing
+        lowest_heldout(&self.passing)
+    }
+
+    /// The candidate of lowest robust cost that the information criterion alone
+    /// accepts (a look-ahead's pick).
+    pub(crate) fn best_ahead(&self) -> Option<&Passing> {
+        self.ahead
             .iter()
             .fold(None, |best: Option<&Passing>, p| match best {
-                Some(b) if b.fig.heldout_score() <= p.fig.heldout_score() => Some(b),
+                Some(b) if b.cost <= p.cost => Some(b),
                 _ => Some(p),
             })
     }
+}
+
+/// The candidate of lowest held-out RMS of `passing` (the first of equals).
+fn lowest_heldout(passing: &[Passing]) -> Option<&Passing> {
+    passing
+        .iter()
+        .fold(None, |best: Option<&Passing>, p| match best {
+            Some(b) if b.score <= p.score => Some(b),
+            _ => Some(p),
+        })
 }
 
 /// The trial of a candidate that was not fitted, and why.
@@ -68,6 +93,9 @@ pub(crate) fn not_fitted(round: usize, effect: EffectId, note: String) -> Trial 
 /// Round `round` of the search from `found`, over `candidates`.
 pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[EffectId]) -> Outcome {
     let (todo, not_applicable) = left(start, found, round, candidates);
+    // the held-out rows every candidate of the round is judged on: a glitch of the
+    // model found so far set aside for all alike
+    let scored = Scored::from(&found.e, &start.held);
     let n = start.user.robot.n_tubes();
     // the screen: every candidate fitted from its starts on a sample of the fit rows
     // with the effects found so far held, side by side on the pool
@@ -95,12 +123,18 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
     // each with every thread for its Jacobian's columns: the fits differ in cost (one
     // under gravity solves loaded rows), and a long one left alone keeps the cores
     // busy instead of one (measured: 9 % faster than splitting the threads)
-    let fitted =
-        ctr_formats::parallel::map(&to_fit, start.threads, |r| full_fit(start, found, round, r));
+    let fitted = ctr_formats::parallel::map(&to_fit, start.threads, |r| {
+        full_fit(start, found, &scored, round, r)
+    });
     let mut verdicts = Vec::new();
     let mut passing = Vec::new();
+    let mut ahead = Vec::new();
     for (trial, pass) in fitted {
-        passing.extend(pass);
+        match pass {
+            Some((p, true)) => passing.push(p),
+            Some((p, false)) => ahead.push(p),
+            None => {}
+        }
         verdicts.push(trial);
     }
     verdicts.extend(judged_on_screen(start, &screen, round, on_screen));
@@ -116,6 +150,7 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
         not_applicable,
         trials,
         passing,
+        ahead,
     }
 }
 
@@ -165,9 +200,15 @@ fn screen_note(screen: &Screen, r: &Screened, full_fits: usize, n: usize) -> Opt
 
 /// Candidate `r` fitted in full from where its screen ended, with the effects found so
 /// far free (a first effect that soaked up part of another must be able to give it
-/// back), on every thread, and judged: its trial, and the candidate when both tests
-/// accept it.
-fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial, Option<Passing>) {
+/// back), on every thread, and judged: its trial, and the candidate when the
+/// information criterion accepts it, with whether the held-out rows do too.
+fn full_fit(
+    start: &Start,
+    found: &Found,
+    scored: &Scored,
+    round: usize,
+    r: &Screened,
+) -> (Trial, Option<(Passing, bool)>) {
     let c = r.effect;
     let k = c.n_params(start.user.robot.n_tubes());
     let blocks: Vec<EffectId> = found.effects().into_iter().chain([c]).collect();
@@ -192,14 +233,16 @@ fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial,
         return (not_fitted(round, c, CANNOT_SIMULATE.into()), None);
     };
     let fig = figures(start.rec, &e, &start.held);
+    let score = scored.score(start.rec, &e);
     let bic = n_obs * (fitted.cost / found.cost).ln() + k as f64 * n_obs.ln();
+    let criterion = !fitted.gave_up && bic < 0.0;
     let note = if fitted.gave_up {
         "not added: the information criterion rejects it (its fit stopped where the gain \
          left, linearised, could not pay for its parameters)"
     } else if bic >= 0.0 {
         "not added: the information criterion rejects it"
-    } else if fig.heldout_score() >= found.fig.heldout_score() * (1.0 - MIN_HELDOUT_GAIN) {
-        "not added: no gain on held-out rows"
+    } else if score >= scored.score(start.rec, &found.e) * (1.0 - MIN_HELDOUT_GAIN) {
+        NO_HELDOUT_GAIN
     } else {
         ""
     };
@@ -212,13 +255,18 @@ fn full_fit(start: &Start, found: &Found, round: usize, r: &Screened) -> (Trial,
         added: false,
         note: note.to_string(),
     };
-    let pass = note.is_empty().then_some(Passing {
-        effect: c,
-        model: m,
-        fig,
-        cost: fitted.cost,
-        e,
-    });
+    let both = note.is_empty();
+    let pass = criterion.then_some((
+        Passing {
+            effect: c,
+            model: m,
+            fig,
+            score,
+            cost: fitted.cost,
+            e,
+        },
+        both,
+    ));
     (trial, pass)
 }
 

@@ -12,14 +12,16 @@ use crate::error::DiagnoseError;
 use crate::fit::Problem;
 use crate::locate::stability::checked_warn_margin;
 use crate::locate::{self, Statement};
+use crate::measurement::{self, Free, Measurement, Tips};
 use crate::options::{Checks, Options};
 use crate::report::{Figures, Noise};
 use crate::residual::{errors, figures, positions, RowError};
 use crate::start::noise::{estimate_noise, median};
 use crate::start::split::split;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::{predict_with_margins, Prediction};
+use ctr_analysis::simulate::{predict, predict_with_margins, Prediction};
 use ctr_formats::Recording;
+use nalgebra::Rotation3;
 use std::borrow::Cow;
 
 /// Huber threshold of the robust cost, in estimated noise standard deviations per
@@ -60,24 +62,79 @@ pub(crate) struct Start<'a> {
 }
 
 /// `model`'s prediction of every run of `rec`, and `rec` with its angular columns
-/// weighted from it (`crate::start::weighting`): what [`Start::new`] starts from.
+/// weighted from it (`crate::start::weighting`): what [`Start::new`] starts from. With
+/// `framed`, the tracker's frame is fitted first (least squares of the tip positions,
+/// closed form: [`crate::measurement`]) and the weights (and the noise, [`Start::new`])
+/// are taken on the model's error in it, the third value: the same whatever frame the
+/// tracker was registered in.
 pub(crate) fn simulated<'a>(
     model: &ModelSpec,
     rec: &'a Recording,
-) -> Result<(Cow<'a, Recording>, Prediction), DiagnoseError> {
+    framed: bool,
+) -> Result<(Cow<'a, Recording>, Prediction, Option<Seen>), DiagnoseError> {
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
-    let base = predict_with_margins(model, rec, &all_runs)
-        .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
-    Ok((weighting::weighted(rec, &base), base))
+    let cannot = |e| DiagnoseError::Model(format!("the model cannot be simulated: {e}"));
+    let base = predict_with_margins(model, rec, &all_runs).map_err(cannot)?;
+    let seen = if framed {
+        in_its_frame(model, rec, &base)
+    } else {
+        None
+    };
+    let weighted = weighting::weighted(rec, seen.as_ref().map_or(&base, |s| &s.pred));
+    Ok((weighted, base, seen))
+}
+
+/// A user model's prediction in the tracker's frame fitted to it ([`simulated`]).
+pub(crate) struct Seen {
+    /// The prediction of every run, in the fitted frame.
+    pred: Prediction,
+    /// The fitted frame's rotation (the tracker's frame from the model's W).
+    turn: Rotation3<f64>,
+}
+
+impl Seen {
+    /// The position errors of the prediction on `rec`'s rows, turned back into the
+    /// model's W (so that a noise estimate per axis is the same in any frame).
+    fn errors_in_w(&self, rec: &Recording) -> Vec<[f64; 3]> {
+        let back = self.turn.inverse();
+        positions(&errors(rec, &self.pred))
+            .into_iter()
+            .map(|v| (back * nalgebra::Vector3::from(v)).into())
+            .collect()
+    }
+}
+
+/// `base` (`model`'s prediction of every row of `rec`) with the tracker's frame fitted
+/// to the positions by least squares (`None` where it cannot be).
+fn in_its_frame(model: &ModelSpec, rec: &Recording, base: &Prediction) -> Option<Seen> {
+    let all_rows: Vec<usize> = (0..rec.rows.len()).collect();
+    let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
+    let bare = predict(&measurement::without(model), rec, &all_runs).ok()?;
+    let mut positions = rec.clone();
+    positions.angular = None;
+    let tips = Tips::new(&positions, &all_rows, &bare, f64::INFINITY)?;
+    let free = Free {
+        registration: Some(0),
+        ..Free::default()
+    };
+    let (m, _) = measurement::profile(&tips, Measurement::of(model), &free);
+    let mut pred = tips.measured(&m, &bare);
+    pred.margin.clone_from(&base.margin);
+    Some(Seen {
+        pred,
+        turn: m.turn(),
+    })
 }
 
 impl<'a> Start<'a> {
     /// The split of `rec` by `opt.holdout` and `model`'s error on it, `base` its
-    /// prediction of every run ([`simulated`]).
+    /// prediction of every run and `seen` the same in the tracker's frame fitted, if it
+    /// was ([`simulated`]): the noise is estimated on that one.
     pub(crate) fn new(
         model: &ModelSpec,
         rec: &'a Recording,
         base: Prediction,
+        seen: Option<Seen>,
         opt: &Options,
     ) -> Result<Self, DiagnoseError> {
         let warn_margin = checked_warn_margin(opt.warn_margin)
@@ -90,7 +147,10 @@ impl<'a> Start<'a> {
         Ok(Start {
             rec,
             baseline: figures(rec, &e0, &held),
-            noise: estimate_noise(rec, &positions(&e0)),
+            noise: estimate_noise(
+                rec,
+                &seen.map_or_else(|| positions(&e0), |s| s.errors_in_w(rec)),
+            ),
             located: locate::locate(rec, &positions(&e0), &fit_mask, &base.p),
             held,
             split_method,

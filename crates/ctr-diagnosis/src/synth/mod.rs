@@ -62,8 +62,14 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub(crate) mod reframe;
 pub(crate) mod unmodelled;
 
+pub use crate::synth::reframe::{
+    Recovered, Reframe, Reframed, ACCOUNT_TOLERANCE, DRAW_GLITCH_MM, DRAW_GLITCH_SHARE,
+    DRAW_MAX_SHIFT_MM, DRAW_MAX_TURN_DEG, DRAW_MAX_ZERO_DEG, DRAW_MAX_ZERO_MM, DRAW_SHIFT_S,
+    FRAME_TOLERANCE, SHIFT_TOLERANCE_S, ZERO_TOLERANCE,
+};
 pub use crate::synth::unmodelled::{Unmodelled, WANDER_COMPONENTS, WANDER_PERIOD_SPAN};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;

@@ -313,16 +313,22 @@ fn uncertain(a: &Assessment) -> Vec<usize> {
         .collect()
 }
 
-/// The run that would pin `problem`'s uncertain parameters best, with the intervals
-/// expected after recording it (`None` when none is uncertain or no candidate run
-/// helps enough). `fit_share` is the share of rows a diagnosis fits.
+/// The run that would pin `problem`'s uncertain parameters of the effects `findings`
+/// best (a nuisance in the model beside them, the tracker's frame where it is no
+/// finding, is no target), with the intervals expected after recording it (`None`
+/// when none is uncertain or no candidate run helps enough). `fit_share` is the share
+/// of rows a diagnosis fits.
 pub(crate) fn next_run(
     problem: &Problem,
     a: &Assessment,
+    findings: &[crate::candidates::EffectId],
     fit_share: f64,
     period_s: f64,
 ) -> Option<(SuggestedRun, JointRun)> {
-    let targets = uncertain(a);
+    let targets: Vec<usize> = uncertain(a)
+        .into_iter()
+        .filter(|&j| findings.contains(&a.effects[j]))
+        .collect();
     if targets.is_empty() {
         return None;
     }

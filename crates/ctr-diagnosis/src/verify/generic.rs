@@ -1,13 +1,13 @@
 //! Check 1 of a finding: it beats a generic correction of its size (see the module
 //! docs of [`crate::verify`]).
 
-use super::{Context, Failure, MIN_GAIN_OVER_EMPIRICAL};
+use super::{Context, Failure, ModelFrame, MIN_GAIN_OVER_EMPIRICAL};
 use crate::candidates::EffectId;
 use crate::empirical::hybrid;
 use crate::empirical::{self, Field};
 use crate::paired::clearly_lower;
 use crate::report::Figures;
-use crate::residual::{positions, tips, with_angles, RowError};
+use crate::residual::{positions, with_angles, RowError};
 use crate::start::noise::NOISE_TOLERANCE;
 use ctr_analysis::model::ModelSpec;
 use nalgebra::{DMatrix, DVector};
@@ -15,10 +15,12 @@ use nalgebra::{DMatrix, DVector};
 impl Context<'_> {
     /// Check 1: the figures of the generic correction in `c`'s place (`e_without`:
     /// `m`'s errors with `c` taken out), and the failure when it does as well as `c`
-    /// (`e`: `m`'s errors; `at_noise`: `m` leaves only noise on the held-out rows).
+    /// (`e`: `m`'s errors; `at_noise`: `m` leaves only noise on the held-out rows);
+    /// the errors in `m`'s W (`frame`).
     pub(super) fn against_generic(
         &self,
         m: &ModelSpec,
+        frame: &ModelFrame,
         e: &[RowError],
         e_without: &[RowError],
         c: EffectId,
@@ -41,15 +43,15 @@ impl Context<'_> {
         // along the tip, can mimic), unless `c`'s own form is such a map (a
         // registration): it is not measured against itself
         let directions = if at_noise {
-            self.directions(m, c)
+            self.directions(m, frame, c)
         } else {
             None
         };
         let tip = directions
             .as_ref()
-            .is_some_and(|d| !affine_in_tip(d, &tips(self.rec, e)));
+            .is_some_and(|d| !affine_in_tip(d, &frame.tips(self.rec, e)));
         let (fig_emp, left_emp) = if tip {
-            let left = self.empirical_with_tip(e_without, k);
+            let left = self.empirical_with_tip(e_without, &frame.tips(self.rec, e_without), k);
             (self.figures(&left), Some(left))
         } else {
             (self.empirical_heldout(e_without, size + k), None)
@@ -79,11 +81,11 @@ impl Context<'_> {
     }
 
     /// What `e` leaves after the best `k`-term generic correction in the joints, time
-    /// and the non-rigid linear maps of the modelled tip position, every row.
-    fn empirical_with_tip(&self, e_row: &[RowError], k: usize) -> Vec<RowError> {
+    /// and the non-rigid linear maps of the modelled tip position (`tips`), every row.
+    fn empirical_with_tip(&self, e_row: &[RowError], tips: &[[f64; 3]], k: usize) -> Vec<RowError> {
         let e = &positions(e_row);
         let mut fields = self.yardstick.clone();
-        fields.extend(non_rigid(&tips(self.rec, e_row), &self.fit));
+        fields.extend(non_rigid(tips, &self.fit));
         let w = empirical::weights(e, &self.fit, self.huber_mm);
         let terms = empirical::pursue(&fields, e, &w, k);
         with_angles(&empirical::subtract(&fields, &terms, e), e_row)

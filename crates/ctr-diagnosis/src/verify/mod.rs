@@ -30,14 +30,22 @@
 //! 2. **Its parameters are constant, not proportional to something.** An effect
 //!    claims a fixed set of parameters: its error is `J_c(q) dx` with `J_c` the
 //!    derivative of the tip with respect to its parameters and `dx` constant over the
-//!    rows. With `c` taken out of `M`, compare two linear fits of that error on the
-//!    fit rows, each with `k` terms: the constant `J_c,j(q)` columns, and the best `k`
+//!    rows. With `c` taken out of `M` to first order (`e - J_c x`, `x` its parameters:
+//!    both fits stand on one linearisation, so that a large effect, a frame turned by
+//!    degrees, is not judged on the curvature of its rotation), compare two linear fits
+//!    of that error on the fit rows with `M`'s robust weights, each with `k` terms: the
+//!    constant `J_c,j(q)` columns, which give `M`'s own error back, and the best `k`
 //!    of the fields `J_c,j(q) f(q)` with `f` a feature of the rows in its own units
 //!    (a feed, a rotation's cosine, the time, the tip position: [`Basis::raw`]), which
 //!    vanish where the feature does, as a gain's error does. If the proportional
 //!    fields do clearly better on the held-out rows, the effect is the shadow of a gain
 //!    or a drift on its own directions (a feed *offset* where the feed *gain* is
 //!    wrong, a registration where the tracker's scale is): outside the vocabulary.
+//!
+//!    Checks 1 and 2 run in the model's own frame (`ModelFrame`: the errors, the tip
+//!    directions and the tip coordinates turned back by `M`'s registration), so that a
+//!    generic term on an axis of the tip, or in a coordinate of it, does not depend on
+//!    how the tracker was registered.
 //!
 //! 3. **Its parameters are identified.** With every finding fitted together, the
 //!    covariance of [`uncertainty`](crate::uncertainty) (the larger of the classical and the
@@ -54,7 +62,11 @@
 //! Checks 1 and 2 run first on every finding; check 3 once they all pass (it needs the
 //! joint fit's covariance, which a finding taken out changes). The findings that fail
 //! are taken out, the others are refitted together, and the checks run again until
-//! every finding passes. [`Checks`] turns one off, to show what it is for.
+//! every finding passes. The tracker's frame, in the model from the start
+//! (`crate::search::frame`), is graded by them but never taken out: the others are
+//! checked with it in place. The held-out figures they compare count the rows of
+//! `crate::scored` (a glitch of the searched model set aside). [`Checks`] turns one
+//! off, to show what it is for.
 
 mod form;
 mod generic;
@@ -62,11 +74,12 @@ mod identified;
 
 use crate::candidates::EffectId;
 use crate::empirical::{Basis, Field};
-use crate::found::{simulate, Found};
+use crate::found::Found;
 use crate::options::Checks;
 use crate::report::Grade;
 use crate::report::{held_words, Figures, Trial, REMOVED};
 use crate::residual::{errors, figures, RowError};
+use crate::scored::Scored;
 use crate::start::noise::NOISE_TOLERANCE;
 use crate::start::Start;
 use crate::uncertainty::Assessment;
@@ -82,7 +95,8 @@ pub const MIN_GAIN_OVER_EMPIRICAL: f64 = 0.02;
 /// What the checks run on.
 pub(crate) struct Context<'a> {
     rec: &'a Recording,
-    /// Whether each row is held out.
+    /// Whether each row is held out and counted by the checks' held-out figures (a
+    /// glitch set aside, [`crate::scored`]).
     held: &'a [bool],
     /// Whether each row is fitted.
     fit: Vec<bool>,
@@ -155,17 +169,18 @@ pub(crate) const PASSES_EVERY_CHECK: &str = "it passes every check: it beats a g
     their 95 % intervals excludes the value that means it is not there";
 
 impl<'a> Context<'a> {
-    /// The checks of a diagnosis of `rec` split by `held`, with the fits' Huber
-    /// threshold, threads and the noise estimate's RMS on the checks' basis.
+    /// The checks of a diagnosis of `rec` whose fit rows are `fit`, judged on the
+    /// held-out rows `held` (of those not fitted, the ones counted), with the fits'
+    /// Huber threshold, threads and the noise estimate's RMS on the checks' basis.
     pub(crate) fn new(
         rec: &'a Recording,
+        fit: Vec<bool>,
         held: &'a [bool],
         huber_mm: f64,
         threads: usize,
         noise_rms: f64,
         checks: Checks,
     ) -> Self {
-        let fit: Vec<bool> = held.iter().map(|h| !h).collect();
         let yardstick = Basis::joints_and_time(rec, &fit).fields();
         Context {
             rec,
@@ -217,15 +232,74 @@ impl<'a> Context<'a> {
             }
         };
         let at_noise = self.figures(e).heldout_score() <= NOISE_TOLERANCE * self.noise_rms;
-        let (generic, failure) = self.against_generic(m, e, &e_without, c, at_noise);
+        // in the model's frame: the checks' generic terms (on an axis of the tip, in a
+        // coordinate of the tip) then do not depend on how the tracker was registered
+        let frame = ModelFrame::of(m);
+        let (e, e_without) = (frame.errors(e), frame.errors(&e_without));
+        let (generic, failure) = self.against_generic(m, &frame, &e, &e_without, c, at_noise);
         out.generic = Some(generic);
         out.failure = failure;
         // 2. where the model leaves more than noise: constant parameters against
         // parameters proportional to a feature
         if out.failure.is_none() && !at_noise && self.checks.constant {
-            out.failure = self.against_proportional(m, &e_without, c);
+            out.failure = self.against_proportional(m, &frame, &e, c);
         }
         out
+    }
+}
+
+/// The frame of a model's W in the tracker's (its registration, `p -> R p + t`): what
+/// the checks turn the errors and tips back by.
+pub(crate) struct ModelFrame {
+    r: nalgebra::Rotation3<f64>,
+    t: nalgebra::Vector3<f64>,
+}
+
+impl ModelFrame {
+    /// `m`'s frame (the identity without a registration).
+    pub(crate) fn of(m: &ModelSpec) -> Self {
+        let reg = m.effects.registration;
+        ModelFrame {
+            r: reg.map_or(nalgebra::Rotation3::identity(), |r| {
+                nalgebra::Rotation3::new(
+                    nalgebra::Vector3::from(r.rotation_vector_deg()).map(f64::to_radians),
+                )
+            }),
+            t: nalgebra::Vector3::from(reg.map_or([0.0; 3], |r| r.translation_mm)),
+        }
+    }
+
+    /// A vector of the tracker's frame in W.
+    fn back(&self, v: [f64; 3]) -> [f64; 3] {
+        (self.r.inverse() * nalgebra::Vector3::from(v)).into()
+    }
+
+    /// Error vectors (positions and angles) turned into W.
+    pub(crate) fn errors(&self, e: &[RowError]) -> Vec<RowError> {
+        e.iter()
+            .map(|v| {
+                let p = self.back([v[0], v[1], v[2]]);
+                let a = self.back([v[3], v[4], v[5]]);
+                [p[0], p[1], p[2], a[0], a[1], a[2]]
+            })
+            .collect()
+    }
+
+    /// A field of tip directions turned into W.
+    pub(crate) fn field(&self, f: Field) -> Field {
+        f.into_iter().map(|v| self.back(v)).collect()
+    }
+
+    /// The modelled tips in W of `rec`'s rows whose errors in W are `e`.
+    pub(crate) fn tips(&self, rec: &Recording, e: &[RowError]) -> Vec<[f64; 3]> {
+        rec.rows
+            .iter()
+            .zip(e)
+            .map(|(row, v)| {
+                let m = self.r.inverse() * (nalgebra::Vector3::from(row.p) - self.t);
+                [m.x + v[0], m.y + v[1], m.z + v[2]]
+            })
+            .collect()
     }
 }
 
@@ -239,9 +313,12 @@ pub(crate) fn settle(
     mut found: Found,
     checks: Checks,
 ) -> (Found, Vec<Removed>, Option<Assessment>) {
+    // a glitch of the searched model set aside from the checks' held-out figures
+    let scored = Scored::from(&found.e, &start.held);
     let ctx = Context::new(
         start.rec,
-        &start.held,
+        start.fit_mask(),
+        scored.mask(),
         start.huber_mm(),
         start.threads,
         start.noise.weighted_rms(),
@@ -249,8 +326,11 @@ pub(crate) fn settle(
     );
     let last_round = found.tried.iter().map(|t| t.round).max().unwrap_or(0) + 1;
     let mut removed = Vec::new();
+    // the tracker's frame, a nuisance in the model from the start: graded, never taken
+    // out (the others are checked with it in place, whatever it is graded)
+    let kept = found.frame_profiled.then_some(EffectId::Registration);
     loop {
-        let (checked, assessment) = ctx.check_all(start, &found);
+        let (checked, assessment) = ctx.check_all(start, &found, kept);
         for ch in &checked {
             if let Some(f) = found.findings.iter_mut().find(|f| f.effect == ch.effect) {
                 f.empirical_heldout_rms_mm = ch.generic.map_or(f64::NAN, |g| g.heldout_rms_mm);
@@ -258,10 +338,20 @@ pub(crate) fn settle(
                 f.grade_reason = PASSES_EVERY_CHECK.into();
             }
         }
-        let failed: Vec<(EffectId, String)> = checked
+        let mut failed: Vec<(EffectId, String)> = checked
             .iter()
             .filter_map(|c| Some((c.effect, failure_words(c.failure.as_ref()?))))
             .collect();
+        if let Some(i) = failed.iter().position(|(c, _)| Some(*c) == kept) {
+            let (c, why) = failed.remove(i);
+            if let Some(f) = found.findings.iter_mut().find(|f| f.effect == c) {
+                f.grade = Grade::Predictive;
+                f.grade_reason = format!(
+                    "the tracker's frame, kept in the model (solved in every fit, a nuisance), \
+                     but not established: {why}"
+                );
+            }
+        }
         if failed.is_empty() {
             return (found, removed, assessment);
         }
@@ -280,7 +370,7 @@ pub(crate) fn settle(
                 removed.push(Removed { finding, why });
             }
         }
-        if !refit(start, &mut found) {
+        if !found.refit(start) {
             return (found, removed, None);
         }
     }
@@ -298,44 +388,37 @@ impl Context<'_> {
     /// Checks 1 and 2 of every finding of `found`, then, once they all pass, check 3 on
     /// them together (it needs the joint fit's covariance, and a finding taken out
     /// changes everyone's), with the assessment it judged them on.
-    fn check_all(&self, start: &Start, found: &Found) -> (Vec<Checked>, Option<Assessment>) {
+    /// A failure of `kept` (a finding graded but never taken out) does not hold check
+    /// 3 back.
+    fn check_all(
+        &self,
+        start: &Start,
+        found: &Found,
+        kept: Option<EffectId>,
+    ) -> (Vec<Checked>, Option<Assessment>) {
+        // the findings checked; the tracker's frame, in the model without being one,
+        // counted in the joint fit's covariance of check 3
         let effects = found.effects();
+        let findings: Vec<EffectId> = found.findings.iter().map(|f| f.effect).collect();
         // each finding's checks are independent of the others': side by side
-        let mut checked: Vec<Checked> = ctr_formats::parallel::map(&effects, self.threads, |&c| {
+        let mut checked: Vec<Checked> = ctr_formats::parallel::map(&findings, self.threads, |&c| {
             self.check(&found.model, &found.e, c)
         });
-        if effects.is_empty() || checked.iter().any(|c| c.failure.is_some()) {
+        let held_back = checked
+            .iter()
+            .any(|c| c.failure.is_some() && Some(c.effect) != kept);
+        if effects.is_empty() || held_back {
             return (checked, None);
         }
         let (failures, assessment) =
             self.identified(&found.model, &start.user, &effects, &start.fit_rows);
         for (c, failure) in failures {
             if let Some(ch) = checked.iter_mut().find(|ch| ch.effect == c) {
-                ch.failure = Some(failure);
+                ch.failure.get_or_insert(failure);
             }
         }
         (checked, assessment)
     }
-}
-
-/// The findings left in `found` refitted together on the user's model from their
-/// values; false (`found` unchanged) when the fit or its simulation fails.
-fn refit(start: &Start, found: &mut Found) -> bool {
-    let effects = found.effects();
-    let refit = if effects.is_empty() {
-        Some(start.user.clone())
-    } else {
-        let x0 = found.parameters_in(&found.model);
-        let p = start.problem(start.user.clone(), effects);
-        p.fit(&x0, crate::fit::MAX_FIT_ITERATIONS)
-            .map(|f| p.model(&f.x))
-    };
-    let Some(m) = refit else { return false };
-    let Some(e) = simulate(start, &m) else {
-        return false;
-    };
-    found.take(start, m, e);
-    true
 }
 
 /// A failed check, in words.
@@ -440,8 +523,10 @@ mod tests {
         let held: Vec<bool> = (0..rec.rows.len()).map(|r| r % 4 == 3).collect();
         let fit_rows: Vec<usize> = (0..rec.rows.len()).filter(|&r| !held[r]).collect();
         let noise_rms_mm = 3f64.sqrt() * SIGMA_MM;
+        let fit: Vec<bool> = held.iter().map(|h| !h).collect();
         let ctx = Context::new(
             &rec,
+            fit,
             &held,
             3.0 * SIGMA_MM,
             1,
@@ -472,7 +557,7 @@ mod tests {
             identified: false,
             ..Checks::default()
         };
-        let ctx = Context::new(&rec, &held, 0.6, 1, 0.35, off);
+        let ctx = Context::new(&rec, vec![true; held.len()], &held, 0.6, 1, 0.35, off);
         let rows: Vec<usize> = (0..rec.rows.len()).collect();
         assert!(ctx
             .identified(&with_latency(0.01), &user(), &[EffectId::Latency], &rows)
