@@ -11,8 +11,8 @@
 #
 # --fixed runs issue 40's four transformations first; --draws (default 20) seeded draws
 # of the family follow. Hold whole runs out (--holdout runs:LABEL) for a split that does
-# not move when the runs are reordered. The public real recording (README, "Real
-# robot") is run this way for the README; it is not kept in the repository.
+# not move when the runs are reordered. The public real recording (docs/real-robots.md)
+# is run this way for the guide's table; it is not kept in the repository.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [ $# -lt 2 ]; then

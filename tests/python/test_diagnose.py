@@ -151,6 +151,25 @@ def test_recording_pickles_exactly(rec):
         assert again.runs == rec.runs and again.file == rec.file
 
 
+def test_a_static_set_pickles_and_its_noise_comes_from_its_frames(liu):
+    # the bundled static set: 60 poses of 20 frames averaged (n_frames, spread_mm)
+    path = REPO / "data" / "examples" / "liu2023-static.csv"
+    robot = ctr_py.Robot.from_toml(REPO / "data" / "robots" / "liu2023.toml")
+    static = ctr_py.read_recording(path, robot)
+    for protocol in range(2, pickle.HIGHEST_PROTOCOL + 1):
+        again = pickle.loads(pickle.dumps(static, protocol=protocol))
+        assert again == static
+    report = ctr_py.diagnose(robot, static)
+    assert report.noise["method"].startswith("from the averaged frames"), report.noise
+    assert "static configuration set" in report.to_dict()["split"]["method"]
+    _, (state,) = static.__reduce__()
+    bad = list(state)
+    tangents, poses, frames = bad[11]
+    bad[11] = (tangents, poses[:-1], frames)  # poses that do not cover the rows
+    with pytest.raises(ctr_py.InputError, match="the poses do not cover"):
+        ctr_py.Recording._from_state(tuple(bad))
+
+
 def test_recording_state_is_checked(rec):
     _, (state,) = rec.__reduce__()
     bad = list(state)

@@ -543,6 +543,11 @@ pub(crate) fn not_applicable(
         .iter()
         .all(|p| p.density_kg_m3.is_some());
     match effect {
+        EffectId::Latency if rec.is_static() => Some(
+            "not tried: a static configuration set (its rows are held poses, not a time \
+             series): latency cannot be seen"
+                .into(),
+        ),
         EffectId::Latency if !rec.has_time => {
             Some("the recording has no t_s column: latency cannot be seen".into())
         }

@@ -130,15 +130,15 @@ pub(crate) fn finish(
         WhereLeft::Located => located_left(rec, &e, &start.fit_mask(), &pred.p),
         WhereLeft::Said(words) => words.into(),
     });
-    let explained = verdict.explained;
     Diagnosis {
         report: Report {
             baseline: start.baseline,
             findings,
             final_: fig,
-            explained,
+            explained: verdict.explained,
             unexplained,
-            empirical: (!explained).then_some(verdict.empirical),
+            empirical: (!verdict.explained).then_some(verdict.empirical),
+            sessions: crate::sessions::disagreeing(rec, &verdict.noise),
             noise: verdict.noise,
             split: Split {
                 method: start.split_method,
@@ -149,7 +149,7 @@ pub(crate) fn finish(
             tried,
             failed_rows: pred.failed,
             outlier_lines: verdict.outliers.iter().map(|&r| rec.rows[r].line).collect(),
-            outlier_rule: outlier_rule(),
+            outlier_rule: outlier_rule(rec),
             outlier_threshold_mm: verdict.outlier_threshold_mm,
             final_inliers: verdict.inliers,
             uncertainty_method: overall.method,
@@ -160,7 +160,7 @@ pub(crate) fn finish(
         },
         fitted,
         established,
-        empirical: (!explained).then_some(verdict.correction),
+        empirical: (!verdict.explained).then_some(verdict.correction),
         discrepancy: verdict.discrepancy,
         suggested_joints,
     }

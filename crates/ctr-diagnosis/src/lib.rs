@@ -1,89 +1,101 @@
 //! Diagnosis: where a model and a recording disagree, which left-out physics explains
-//! it, fitted, and the gain shown on rows the fit did not see.
+//! it, fitted, graded by the evidence, and the gain shown on rows the fit did not see.
 //!
 //! This crate sits above the row model: it simulates a recording only through
-//! `ctr_analysis::simulate::predict` (a [`ModelSpec`](ctr_analysis::model::ModelSpec):
-//! robot, model kind and effects, run along the recorded commands) and reads and writes
-//! the contract's files through `ctr_formats`. `ctr-cli diagnose` / `calibrate` /
-//! `evaluate` and `ctr_py.diagnose` / `calibrate` / `evaluate` are thin calls of
-//! [`diagnose()`], [`calibrate()`] and [`evaluate()`].
+//! `ctr_analysis::simulate` (a [`ModelSpec`](ctr_analysis::model::ModelSpec): robot,
+//! model kind and effects, run along the recorded commands; `ctr_analysis::linearised`
+//! for the fits' Jacobians) and reads and writes the contract's files through
+//! `ctr_formats`. `ctr-cli diagnose` / `calibrate` / `evaluate` and `ctr_py.diagnose` /
+//! `calibrate` / `evaluate` are thin calls of [`diagnose()`], [`calibrate()`] and
+//! [`evaluate()`].
 //!
-//! 1. **Split** ([`Holdout`]): each run is cut into contiguous blocks and every
-//!    `every`-th block (staggered between runs) is held out; or whole runs are held out
-//!    by label. Never random rows: neighbouring samples share their errors. Time effects
-//!    need whole runs, so every run is always simulated; only the residuals of the
-//!    held-out rows are kept from the fit.
-//! 2. **Noise**: estimated from the data, not from the model: the second differences
-//!    of the user model's residual along each run remove any error that varies smoothly
-//!    with the motion, leaving `6 sigma^2` of white tracker noise per axis (a robust
-//!    median-absolute-deviation estimate, so jumps at reversals and outliers do not
-//!    count). Rows repeated at rest give a second estimate where there are enough.
-//!    With angular columns (`qw,qx,qy,qz` or `tx,ty,tz`, `angular`), their noise is
-//!    estimated the same way on the angular error, and each row's residual gains the
-//!    angular components weighted by the position noise over theirs (whitened alike).
-//! 3. **Locate** ([`locate`]): regressions of the residual on runs, joints, exposed
-//!    lengths, relative angles (periodic), direction of motion and workspace position.
-//! 4. **Explain**: forward selection over the contract's effects the model leaves out
-//!    ([`EffectId`]). The tracker's frame is no candidate: where the registration is
-//!    one, it is in the model from the start and every fit solves it in closed form at
-//!    every point it tries (`measurement`: variable projection; the sensor offset and
-//!    rotation likewise wherever they are fitted), so no account depends on how the
-//!    tracker was registered. Each round fits every remaining candidate's parameters
-//!    (`fit`: robust Levenberg-Marquardt, bounded) with the effects found so far held,
-//!    and the candidate with the lowest held-out error is added if it passes both
-//!    tests: the Bayesian information criterion on the fit rows,
+//! [`diagnose()`] is one pipeline of named stages over one state, in this order
+//! (`diagnose.rs`; a module or folder per stage):
+//!
+//! 1. **The tracker's frame** (`search::frame`, `measurement`). A registration says
+//!    nothing of the robot, so it is no candidate: where the user's model has none and
+//!    the candidates hold it, it is in the model from the start, and every fit solves it
+//!    in closed form at every point it tries (variable projection: weighted
+//!    Kabsch/Umeyama, then robust Gauss-Newton; the sensor offset and rotation likewise
+//!    wherever they are fitted). No account depends on how the tracker was registered.
+//! 2. **Start** (`start`): the angular columns (`qw,qx,qy,qz` or `tx,ty,tz`) weighted by
+//!    their noise against the positions (`start::angular`, `start::weighting`); the
+//!    **split** ([`Holdout`]: each run cut into contiguous blocks, every `every`-th held
+//!    out and staggered between runs, or whole runs by label; never random rows, as
+//!    neighbouring samples share their errors; time effects need whole runs, so every run
+//!    is always simulated); the **noise** from the data, not the model (`start::noise`:
+//!    the second differences of the user model's residual along each run remove any error
+//!    that varies smoothly with the motion, leaving `6 sigma^2` of white tracker noise per
+//!    axis, by a robust median-absolute-deviation estimate); and where the error sits
+//!    ([`locate`]: regressions on runs, joints, exposed lengths, relative angles, direction
+//!    of motion and workspace position).
+//! 3. **Search** (`search`): forward selection over the effects the model leaves out
+//!    ([`EffectId`]). Each round screens every candidate beside the effects found so far
+//!    on a sample of the fit rows (`search::screen`), fits the most promising in full
+//!    (`fit`, `levenberg`: robust Huber Levenberg-Marquardt, bounded, several starts where
+//!    the problem is not convex) and adds the one with the lowest held-out error if it
+//!    passes both tests: the Bayesian information criterion on the fit rows,
 //!    `N ln(C_new / C_old) + k ln N < 0` (N residual components, k parameters, C the
 //!    robust cost), and a held-out RMS at least [`MIN_HELDOUT_GAIN`] lower, on the
 //!    held-out rows the model so far does not miss by many times its median (`scored`:
 //!    one glitch among few held-out rows decides no choice). The effects found are then
-//!    refitted together. Where no candidate passes both, the one the criterion likes
-//!    best may enter for a look-ahead of two rounds, kept only if the model it leads
-//!    to pays over where it began. When nothing enters, every effect found is tested
-//!    again against the model without it, refitted (`search::backward`), and those
-//!    that no longer pay leave: the search revisits what it took first.
-//! 5. **Verify** (`verify`): a finding is physics only when the data say so. With the
-//!    other findings in place, each must beat the generic empirical correction of as
-//!    many parameters in its place on the held-out rows (where it leaves only noise,
-//!    a correction also in the stretches and shears of the tip position, unless the
-//!    effect is itself a map of the tip position: a sensor offset along the tip that
-//!    mimics a tracker's scale fails), and its
-//!    parameters must fit better constant than proportional to a feature of the rows
-//!    (a feed offset where the feed gain is wrong fails). Findings that fail are taken
-//!    out and the rest refitted, until all pass.
-//! 6. **Verdict**: `explained` is true when the held-out residual (tracker outliers set
-//!    aside) is at most [`NOISE_TOLERANCE`] times the noise estimate. When false, a
-//!    learned discrepancy (`empirical::gp`: a Gaussian process over the joints and their
-//!    history, fitted on the fit rows) is fitted on top of the physics and reported
-//!    apart as `empirical`, with its held-out RMS and its band (the linear correction
-//!    of `hybrid`, in the joints, time and tip position, where it cannot be fitted). Tracker outliers are judged on what is left after both: rows far from the
-//!    residual's median and from their neighbours, by the residual's own robust spread.
-//! 7. **Uncertainty** (`uncertainty`): every finding's parameters get 95 % intervals
-//!    (`ci95`) from the fit's Jacobian, the larger of the classical and a
-//!    cluster-robust covariance; directions the data cannot pin are tied to the nominal
-//!    and the combinations they do pin reported instead.
-//! 8. **Near a snap** (`stability`, [`Stability`]): the rows where the user's or the
-//!    fitted model, solved along each run as the robot moved, has a stability margin
-//!    below [`Options::warn_margin`] (or below 0: an unstable branch), from the margins
-//!    of the simulations already made; a jump in the data there is physics, and
-//!    tracker outliers among those rows are said to be so.
+//!    refitted together. Where only the criterion accepts a candidate, it may enter for a
+//!    look-ahead of two rounds, kept only if the model it leads to pays over where it
+//!    began; when nothing enters, every effect found is tested again against the model
+//!    without it, refitted (`search::backward`), and those that no longer pay leave.
+//! 4. **Verify** (`verify`): a finding is physics only when the data say so. With the
+//!    other findings in place each must beat a generic empirical correction of as many
+//!    parameters on the held-out rows (`empirical`; where the model leaves only noise,
+//!    also one in the stretches and shears of the tip position, unless the effect is
+//!    itself a map of the tip position), fit better constant than proportional to a
+//!    feature of the rows (a feed offset where the feed gain is wrong fails), and be
+//!    identified (its joint 95 % region excludes the nominal). Findings that fail are
+//!    taken out and the rest refitted, then revisited as the search revisits, until all
+//!    pass: the **established** findings.
+//! 5. **Predictive** (`predictive`): the search's model is the best predictive model. A
+//!    finding the checks took out stays in it, graded **predictive** ([`Grade`]), where
+//!    the fitted model without it does worse on the held-out rows by at least
+//!    [`MIN_HELDOUT_GAIN`] and beyond chance (`paired`); the others are dropped. A
+//!    predictive finding never makes an established one.
+//! 6. **Finish** (`finish`):
+//!    - the **verdict** (`verdict`): `explained` when the held-out residual (tracker
+//!      outliers aside) is at most [`NOISE_TOLERANCE`] times the noise estimate and no
+//!      predictive finding was needed to get there. When it is not, a learned discrepancy
+//!      is fitted on top of the physics (`empirical::gp`: a Gaussian process over the
+//!      commanded joints, their relative rotations and the play operators of those
+//!      rotations along each run, i.e. the joints and their history; its length scales,
+//!      signal, noise and play width by the marginal likelihood of the fit rows) and
+//!      reported apart as `empirical`, with its held-out RMS and its band; where it cannot
+//!      be fitted, the linear correction of `empirical::hybrid` stands in. Tracker
+//!      outliers are judged on what is left after both: rows far from the residual's
+//!      median and from their neighbours ([`OUTLIER_SIGMAS`] robust deviations);
+//!    - the **intervals** (`uncertainty`): 95 % intervals (`ci95`) from the fit's
+//!      Jacobian, the larger of the classical and a cluster-robust covariance, each end
+//!      checked along its profile and, where the residual is not explained, joined with
+//!      the remainder's; directions the data cannot pin tied to the nominal and the
+//!      combinations they do pin reported instead; the run to record next
+//!      (`uncertainty::suggest`);
+//!    - the **grades** (`grade`, `tolerance`): established only where an interval
+//!      excludes the value that means "not there", none sits on a bound, and every
+//!      parameter is within [`TOLERANCE_SIGMAS`] of the lab's tolerances
+//!      ([`CURVATURE_RADIUS_TOLERANCE`], [`YOUNGS_MODULUS_TOLERANCE`],
+//!      [`DENSITY_TOLERANCE`]);
+//!    - the rows **near a snap** (`locate::stability`, [`Stability`]): where the user's or
+//!      the fitted model, solved along each run as the robot moved, has a stability
+//!      margin below [`Options::warn_margin`] (or below 0); a jump in the data there is
+//!      physics, and tracker outliers among those rows are said to be so;
+//!    - the **report** ([`Report`], its [`summary`](Report::summary), the SVG plots
+//!      [`Plot`] and the self-contained HTML page [`Page`]).
 //!
-//! One concept per module: `split` ([`Holdout`]), `noise` (the estimate and the
-//! outliers), `residual` (error vectors and their figures), `angular` (the angular
-//! columns' errors and noise), `weighting` (their weight against the positions),
-//! `robust` (the median and its spread), `scored` (the held-out rows a decision
-//! counts), [`locate`], `jacobian` (the fits' Jacobian), `measurement` (the
-//! measurement solved inside every fit), `candidates`
-//! ([`EffectId`]: each effect as a parameter block), `fit`, `levenberg` (its steps),
-//! `search` (forward selection, the frame, the revisit; [`diagnose()`]),
-//! `empirical` (the generic basis and matching pursuit), `verify` (the checks of a
-//! finding), `hybrid` (the empirical term), `uncertainty` (intervals and
-//! identifiability), `numbers` (a JSON value's numbers by key path),
-//! `calibrate` and `evaluate` (no search), `start` (what both start from and how both
-//! finish), `stability` (the rows near a snap), `report` ([`Report`] and its
-//! [`summary`](Report::summary)), `prose` (the words), `plots` (the SVG plots drawn
-//! from a report and its recording, [`Plot`]), `html` (the report as one
-//! self-contained page, [`Page`]), `options`, `error`. The fits run on the one thread
-//! pool, `ctr_formats::parallel`; results do not depend on the thread count.
+//! [`calibrate()`] fits named effects together without the search (the same start and
+//! finish, graded by the intervals alone); [`evaluate()`] gives several models' tip errors
+//! run by run. [`Checks`] turns a check off, to show what it is for.
+//!
+//! Other modules: `candidates` (each effect as a parameter block), `found` (the model a
+//! stage hands on), `jacobian` (the fits' Jacobian: linearised columns for the effects on
+//! the joints or the measurement, solved ones for the mechanics), `residual`, `robust`,
+//! `quantiles`, `options`, `error`. The fits run on the one thread pool,
+//! `ctr_formats::parallel`; results do not depend on the thread count.
 //!
 //! With the `synth` feature (off by default), `synth` generates recordings with
 //! concealed effects: the proof bench of the diagnosis, used by this crate's tests and
@@ -115,6 +127,7 @@ mod residual;
 mod robust;
 mod scored;
 mod search;
+mod sessions;
 mod start;
 #[cfg(feature = "synth")]
 pub mod synth;
@@ -139,8 +152,8 @@ pub use report::html::{escape_html, Page};
 pub use report::plots::Plot;
 pub use report::{
     fitted_file, Alternative, AngularFigures, AngularNoise, Band, Correlated, Diagnosis, Empirical,
-    ExpectedInterval, Figures, Finding, GpInput, Grade, JointRun, Noise, Report, RunErrors, Split,
-    SuggestedRun, Term, Trial,
+    ExpectedInterval, Figures, Finding, GpInput, Grade, JointRun, Noise, Report, RunErrors,
+    SessionChange, Split, SuggestedRun, Term, Trial,
 };
 pub use search::MIN_HELDOUT_GAIN;
 pub use start::noise::{estimate_noise, NOISE_TOLERANCE, OUTLIER_SIGMAS};

@@ -2,7 +2,9 @@
 //! the noise? The noise is estimated again on what it leaves (closer to white, so the
 //! lower estimate is kept), the labelled empirical term is fitted on top of the physics
 //! ([`crate::empirical::hybrid`]; where the recording is not explained, the learned
-//! discrepancy of [`crate::empirical::gp`] is fitted too and reported in its place),
+//! discrepancy of [`crate::empirical::gp`] is fitted too and reported in its place when
+//! its cross-validation on the fit rows beats the physics, else it is not offered and
+//! the linear correction says why),
 //! tracker outliers are judged on what is left after
 //! both, and `explained` holds when the held-out RMS without them is at most
 //! [`NOISE_TOLERANCE`] times the noise's RMS and no predictive finding (`crate::grade`)
@@ -88,7 +90,19 @@ impl Verdict {
         // what no physics explains, learned over the joints and their history
         let learned = (!at_noise).then(|| gp::fit(start, model, e)).flatten();
         let (empirical, discrepancy) = match learned {
-            Some((account, d, _)) => (account, Some(d)),
+            Some((account, d, _, cv)) if cv.helps() => (account, Some(d)),
+            Some((_, _, _, cv)) => {
+                let mut empirical = empirical;
+                empirical.method += &format!(
+                    "; the learned discrepancy (a Gaussian process over the joints and their \
+                     history) is not offered: cross-validated over {} folds of the fit rows it \
+                     leaves {:.3} mm against the physics' {:.3} mm",
+                    gp::CV_FOLDS,
+                    cv.learned_mm,
+                    cv.physics_mm
+                );
+                (empirical, None)
+            }
             None => (empirical, None),
         };
         Verdict {
@@ -122,6 +136,12 @@ impl Verdict {
         fig: &Figures,
         where_left: impl FnOnce() -> String,
     ) -> String {
+        if !self.noise.sigma_mm_per_axis.is_finite() {
+            return format!(
+                "cannot tell whether what is left ({:.3} mm held out) is noise: the noise is {}",
+                self.inliers.heldout_rms_mm, self.noise.method
+            );
+        }
         if !self.leaning_on.is_empty() {
             let names: Vec<&str> = self.leaning_on.iter().map(|c| c.as_str()).collect();
             return format!(

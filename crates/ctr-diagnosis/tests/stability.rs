@@ -23,8 +23,8 @@ const SNAPPING_S1_MM: f64 = 55.0;
 const CALM_S1_MM: f64 = 15.0;
 /// Step of the relative angle along a sweep, degrees.
 const STEP_DEG: f64 = 1.0;
-/// The warning margin of these tests: about 6 degrees from a snap (README
-/// "Snap-through"), the last few rows before each snap on 1 deg steps.
+/// The warning margin of these tests: about 6 degrees from a snap
+/// (`docs/snap-through.md`), the last few rows before each snap on 1 deg steps.
 const WARN_MARGIN: f64 = 0.3;
 /// A tip that moves more than this between two rows has jumped, mm (the snaps here jump
 /// about 49 mm; a 1 deg step moves the tip about 1 mm).
@@ -283,7 +283,7 @@ fn evaluate_marks_the_snaps_per_run_and_per_model() {
 /// 1 deg sweep marks the last row or two before each snap, a 0.02 deg approach to the
 /// snap marks its last one to three degrees (the margin is the distance to the fold in
 /// any joint direction, feeds included, so along one rotation the fold is at least that
-/// far: README "Snap-through").
+/// far: `docs/snap-through.md`).
 #[test]
 fn the_default_warning_margin_marks_about_the_last_degree() {
     let model = model();

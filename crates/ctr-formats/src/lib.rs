@@ -1,10 +1,11 @@
 //! # ctr-formats
 //!
 //! File formats: the robot TOML, the joint CSV, the tip CSV, the IK target and joint
-//! CSVs, the rig's recording CSV, the actuation schema, atomic output; the located
-//! errors every reader and writer gives ([`Error`]); the robot whose tube count a file
-//! decides ([`AnyRobot`]); and the project's one thread pool ([`parallel`]), which the
-//! readers are the first to use.
+//! CSVs, the recording (read for the diagnosis, written by the rig), each table also
+//! as Parquet, the actuation schema, the labelled data-driven corrections a diagnosis
+//! writes into a robot file, atomic output; the located errors every reader and writer
+//! gives ([`Error`]); the robot whose tube count a file decides ([`AnyRobot`]); and the
+//! project's one thread pool ([`parallel`]), which the readers are the first to use.
 //!
 //! A leaf above `ctr-core`: the analysis, the diagnosis, the servo rig (`ctr-hw`) and
 //! both front ends read and write through it, and it depends on none of them.
@@ -34,10 +35,15 @@
 //!
 //! `[model.effects]` holds one typed table per effect id of the contract (`torsion` is
 //! `kind`): `joint_offset`, `latency`, `friction`, `clearance`, `gravity`, `stiffness`,
-//! `precurvature`, `sensor_offset`, `registration`; their keys and the order they act
-//! in are documented in [`Effects`]'s module (`formats::effects`) and
-//! `data/FORMATS-EXTENSION.md`. A fitted model is written back as a robot file with its
-//! `[model]` ([`RobotSpec::to_toml`]) and read by every command as is.
+//! `precurvature`, `sensor_offset`, `registration`, and this project's
+//! `sensor_rotation`; their keys and the order they act in are documented in
+//! [`Effects`]'s module (`formats::effects`) and `data/FORMATS-EXTENSION.md`. Beside
+//! them, two labelled corrections that are not physics: `[model.empirical]`
+//! ([`Correction`], linear in a fixed basis of the row's features) and
+//! `[model.discrepancy]` ([`Discrepancy`], a Gaussian process over the joints and their
+//! history), which `ctr-cli diagnose --with-empirical` writes. A fitted model is written
+//! back as a robot file with its `[model]` ([`RobotSpec::to_toml`]) and read by every
+//! command as is.
 //!
 //! A `--model` given on the command line overrides `kind`.
 //!
@@ -137,6 +143,15 @@
 //! (Parquet, gzip, a spreadsheet's workbook, UTF-16) is named as such instead of being
 //! refused as "not valid UTF-8 text".
 //!
+//! # Recording CSV (read by the diagnosis)
+//!
+//! [`Recording`] reads the contract's recording: the robot's joint columns and
+//! `x_mm,y_mm,z_mm`, and optionally `t_s`, `run` (rows with one label are one
+//! contiguous run), the measured orientation `qw,qx,qy,qz` or tangent `tx,ty,tz`
+//! ([`AngularColumns`]) and a known tip force `fx_n,fy_n,fz_n`; a label that starts
+//! again after other rows, or a time that decreases within a run, is refused with its
+//! line.
+//!
 //! # Recording CSV (written by `ctr-cli hw run`)
 //!
 //! [`RecordingWriter`] writes [`recording_header`]:
@@ -149,6 +164,14 @@
 //! its completed rows, a killed one leaves them in the journal, and the recording's path
 //! holds the previous file or a finished run's, never a part. An existing recording is
 //! never replaced unless asked.
+//!
+//! # Parquet
+//!
+//! A joint, target, tip, IK or recording file named `*.parquet` ([`is_parquet`]) is
+//! Parquet, with the CSV file's column names, checks and errors (the row, 1-based, and
+//! the column): numbers from DOUBLE, FLOAT, INT32 or INT64 columns, the computed
+//! columns written as DOUBLE and the input's other columns carried with their types
+//! ([`ParquetOutput`], `data/FORMATS-EXTENSION.md`, "Parquet").
 //!
 //! # Files from spreadsheets and Windows editors
 //!
@@ -174,6 +197,7 @@ mod joint_stream;
 mod joints;
 mod output;
 pub mod parallel;
+pub mod poses;
 mod recorded;
 mod recording;
 mod records;
@@ -204,6 +228,7 @@ pub use empirical::{Correction, Empirical, EmpiricalTerm, Feature, Term, AXES};
 pub use joint_stream::{JointParser, JointPiece, JointRows, JointStream};
 pub use joints::JointTable;
 pub use output::AtomicFile;
+pub use poses::{Frames, Pose};
 pub use recorded::{AngularColumns, AngularWeight, RecordedRow, Recording, Run, UNIT_TOLERANCE};
 pub use recording::{recording_header, RecordingWriter, RECORDING_TIP_COLUMNS};
 pub use robot_file::{

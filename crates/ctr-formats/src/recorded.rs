@@ -10,6 +10,8 @@
 //! comes whole or not at all; an orientation or a tangent whose norm is more than
 //! [`UNIT_TOLERANCE`] from 1 is refused with its line (the others are kept as read;
 //! whoever uses them normalises).
+//! `pose` and `n_frames,spread_mm` make the file a static configuration set
+//! ([`crate::poses`]).
 //! Other columns are ignored. Within a run time must not decrease: friction and latency
 //! depend on the order of the rows.
 
@@ -17,6 +19,7 @@ use super::table::closest;
 use crate::columnar::read::ParquetReader;
 use crate::columnar::{describe, holds_numbers, is_parquet, Column, MAGIC};
 use crate::error::{Error, ErrorKind, Location};
+use crate::poses::{Frames, Pose, PosesSoFar};
 use crate::records::not_text_error;
 use crate::robot::joint_columns;
 use std::borrow::Cow;
@@ -45,6 +48,8 @@ pub struct RecordedRow {
     pub tangent: Option<[f64; 3]>,
     /// Known tip force in W, N (zero when not recorded).
     pub force_n: [f64; 3],
+    /// The tracker frames the row averages (`n_frames,spread_mm`), if recorded.
+    pub frames: Option<Frames>,
 }
 
 /// A run: a label and its contiguous rows.
@@ -86,6 +91,10 @@ pub struct Recording {
     pub has_time: bool,
     /// Whether the file has tip force columns.
     pub has_force: bool,
+    /// The held poses, in file order, when the file is a static configuration set (a
+    /// `pose` column or `n_frames,spread_mm`: [`crate::poses`]); `None` for a time
+    /// series.
+    pub poses: Option<Vec<Pose>>,
     /// How the angular columns count against the positions in a residual, when they
     /// do: never read from the file, set by whoever estimated their noise (the
     /// diagnosis, from the data). `None`: only the positions count.
@@ -149,6 +158,7 @@ const TIP: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
 const QUAT: [&str; 4] = ["qw", "qx", "qy", "qz"];
 const TANGENT: [&str; 3] = ["tx", "ty", "tz"];
 const FORCE: [&str; 3] = ["fx_n", "fy_n", "fz_n"];
+const FRAMES: [&str; 2] = ["n_frames", "spread_mm"];
 
 impl Recording {
     /// Reads a recording of an `n_tubes`-tube robot (CSV, or Parquet when the bytes are
@@ -252,6 +262,12 @@ impl Recording {
         rows.finish(&file, n_tubes, &cols)
     }
 
+    /// Whether the rows are held poses (a static configuration set: [`crate::poses`]),
+    /// not a time series.
+    pub fn is_static(&self) -> bool {
+        self.poses.is_some()
+    }
+
     /// The angular column set a residual can use: the orientation when recorded (it
     /// holds the tangent, its z axis), else the tangent; `None` without either.
     pub fn angular_columns(&self) -> Option<AngularColumns> {
@@ -291,6 +307,9 @@ struct RecordingColumns {
     force: Option<Vec<usize>>,
     time: Option<usize>,
     run: Option<usize>,
+    pose: Option<usize>,
+    /// `n_frames,spread_mm`
+    frames: Option<Vec<usize>>,
 }
 
 impl RecordingColumns {
@@ -341,12 +360,14 @@ impl RecordingColumns {
             force: group(&FORCE)?,
             time: find("t_s"),
             run: find("run"),
+            pose: find("pose"),
+            frames: group(&FRAMES)?,
         })
     }
 
     /// The columns that hold numbers.
     fn numbers(&self) -> impl Iterator<Item = usize> + '_ {
-        let sets = [&self.quaternion, &self.tangent, &self.force];
+        let sets = [&self.quaternion, &self.tangent, &self.force, &self.frames];
         self.required
             .iter()
             .copied()
@@ -428,6 +449,8 @@ struct RowsSoFar {
     /// Each run's label and its index in `runs` (a label seen before is found at once,
     /// not by a walk over every run: a sweep may hold a run per row).
     labels: HashMap<String, usize>,
+    /// The poses of a static set (unused for a time series).
+    poses: PosesSoFar,
 }
 
 impl RowsSoFar {
@@ -470,16 +493,37 @@ impl RowsSoFar {
             Some(c) => [num(c[0])?, num(c[1])?, num(c[2])?],
             None => [0.0; 3],
         };
+        let frames = match &cols.frames {
+            Some(c) => Some(Frames::checked(num(c[0])?, num(c[1])?).map_err(&at)?),
+            None => None,
+        };
+        let runs_before = self.runs.len();
         self.add_to_run(&label, t_s, &at)?;
+        let q = &values[..n];
+        if cols.pose.is_some() || cols.frames.is_some() {
+            let pose = cols.pose.map(|i| cells.label(i));
+            let rows = &self.rows;
+            self.poses
+                .add(
+                    pose.as_deref(),
+                    rows.len(),
+                    line,
+                    self.runs.len() == runs_before,
+                    q,
+                    |r| rows[r].q.clone(),
+                )
+                .map_err(&at)?;
+        }
         self.rows.push(RecordedRow {
             line,
             t_s,
             run: self.runs.len() - 1,
-            q: values[..n].to_vec(),
+            q: q.to_vec(),
             p: [values[n], values[n + 1], values[n + 2]],
             quaternion,
             tangent,
             force_n,
+            frames,
         });
         Ok(())
     }
@@ -552,6 +596,7 @@ impl RowsSoFar {
             runs: self.runs,
             has_time: cols.time.is_some(),
             has_force: cols.force.is_some(),
+            poses: (cols.pose.is_some() || cols.frames.is_some()).then_some(self.poses.poses),
             angular: None,
         })
     }

@@ -25,7 +25,8 @@ pub struct Recording {
 /// What a pickled `Recording` holds: file, tube count, whether it has times and
 /// forces, then per row its line, time, joints, tip, quaternion (if recorded) and
 /// force, the runs as (label, first row, end row), and last the tangents (if
-/// recorded).
+/// recorded) with a static set's poses (label, first row, end row) and frames
+/// (`n_frames`, `spread_mm` per row), if any.
 type State = (
     String,
     usize,
@@ -38,7 +39,11 @@ type State = (
     Option<Vec<f64>>,
     Vec<f64>,
     Vec<(String, usize, usize)>,
-    Option<Vec<f64>>,
+    (
+        Option<Vec<f64>>,
+        Option<Vec<(String, usize, usize)>>,
+        Option<Vec<(u32, f64)>>,
+    ),
 );
 
 /// A `(m, k)` array of one value block per row.
@@ -128,7 +133,7 @@ impl Recording {
             quaternion,
             force,
             runs,
-            tangent,
+            (tangent, poses, frames),
         ) = s;
         let (n, m) = (*n_tubes, lines.len());
         if !(1..=MAX_TUBES).contains(&n) {
@@ -142,6 +147,7 @@ impl Recording {
             || force.len() != 3 * m
             || quaternion.as_ref().is_some_and(|v| v.len() != 4 * m)
             || tangent.as_ref().is_some_and(|v| v.len() != 3 * m)
+            || frames.as_ref().is_some_and(|v| v.len() != m)
         {
             return Err("the columns' lengths do not agree".into());
         }
@@ -155,6 +161,7 @@ impl Recording {
         if end != m {
             return Err("the runs do not cover the rows in order".into());
         }
+        check_static(poses.as_deref(), frames.as_deref(), runs, m)?;
         let mut rows = Vec::with_capacity(m);
         for (k, (_, a, b)) in runs.iter().enumerate() {
             for i in *a..*b {
@@ -171,6 +178,10 @@ impl Recording {
                         .as_ref()
                         .map(|v| [v[3 * i], v[3 * i + 1], v[3 * i + 2]]),
                     force_n: [force[3 * i], force[3 * i + 1], force[3 * i + 2]],
+                    frames: frames.as_ref().map(|v| ctr_formats::Frames {
+                        n: v[i].0,
+                        spread_mm: v[i].1,
+                    }),
                 });
             }
         }
@@ -187,9 +198,46 @@ impl Recording {
                 .collect(),
             has_time: *has_time,
             has_force: *has_force,
+            poses: poses.as_ref().map(|v| {
+                v.iter()
+                    .map(|(label, a, b)| ctr_formats::Pose {
+                        label: label.clone(),
+                        rows: *a..*b,
+                    })
+                    .collect()
+            }),
             angular: None,
         })
     }
+}
+
+/// Checks a pickled static set's `poses` (label, first row, end row) and `frames`
+/// (`n_frames`, `spread_mm` per row) against its `runs` and `m` rows.
+#[allow(clippy::type_complexity)]
+fn check_static(
+    poses: Option<&[(String, usize, usize)]>,
+    frames: Option<&[(u32, f64)]>,
+    runs: &[(String, usize, usize)],
+    m: usize,
+) -> Result<(), String> {
+    if let Some(poses) = poses {
+        let run_of = |r: usize| runs.iter().position(|(_, x, y)| (*x..*y).contains(&r));
+        let mut end = 0;
+        for (_, a, b) in poses {
+            if *a != end || b <= a || *b > m || run_of(*a) != run_of(*b - 1) {
+                return Err("the poses do not cover the rows in order within runs".into());
+            }
+            end = *b;
+        }
+        if end != m {
+            return Err("the poses do not cover the rows in order within runs".into());
+        }
+    }
+    let bad = |(n, s): &(u32, f64)| *n == 0 || !(s.is_finite() && *s >= 0.0);
+    if frames.is_some_and(|f| f.iter().any(bad)) {
+        return Err("a row's frames are not n_frames >= 1 with spread_mm >= 0".into());
+    }
+    Ok(())
 }
 
 #[pymethods]
@@ -223,11 +271,22 @@ impl Recording {
                 .iter()
                 .map(|x| (x.label.clone(), x.rows.start, x.rows.end))
                 .collect(),
-            r.rows
-                .iter()
-                .map(|x| x.tangent)
-                .collect::<Option<Vec<_>>>()
-                .map(|v| v.into_iter().flatten().collect()),
+            (
+                r.rows
+                    .iter()
+                    .map(|x| x.tangent)
+                    .collect::<Option<Vec<_>>>()
+                    .map(|v| v.into_iter().flatten().collect()),
+                r.poses.as_ref().map(|v| {
+                    v.iter()
+                        .map(|x| (x.label.clone(), x.rows.start, x.rows.end))
+                        .collect()
+                }),
+                r.rows
+                    .iter()
+                    .map(|x| x.frames.map(|f| (f.n, f.spread_mm)))
+                    .collect::<Option<Vec<_>>>(),
+            ),
         );
         Ok((slf.get_type().getattr("_from_state")?, (state,)))
     }

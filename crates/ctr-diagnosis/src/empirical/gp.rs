@@ -20,6 +20,11 @@
 //!   their logs mapped into bounds, with its analytic gradient
 //!   `1/2 tr((K^-1 Y Y^T K^-1 - 3 K^-1) dK)`; the play width by the same likelihood
 //!   over [`PLAY_WIDTHS_DEG`]. No held-out row takes part.
+//! - **Offered only where it helps** (`crate::verdict`): [`CV_FOLDS`]-fold
+//!   cross-validation over the training rows (contiguous folds; a static set's by
+//!   pose, so that no frame of a pose predicts another), the process with the fitted
+//!   hyperparameters conditioned on the other folds: its RMS against the physics' on the
+//!   same rows ([`Cv`]).
 //!
 //! Why by hand on nalgebra rather than a GP crate (egobox-gp): the fitted process must
 //! be written into the robot file as numbers (its inputs by name, training rows,
@@ -62,17 +67,39 @@ const MAX_ITERATIONS: u64 = 60;
 /// 37 % fewer likelihood evaluations, the held-out RMS with the discrepancy the same to
 /// 0.06 %).
 const LIKELIHOOD_TOLERANCE_NATS: f64 = 1e-2;
+/// Folds of the cross-validation that decides whether the discrepancy is offered.
+pub const CV_FOLDS: usize = 5;
+
+/// The discrepancy's cross-validation on the fit rows: what it leaves on the training
+/// rows, each predicted by the process conditioned on the other folds, against what the
+/// physics leaves there (RMS of the tip positions, mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Cv {
+    /// with the discrepancy, mm
+    pub learned_mm: f64,
+    /// the physics alone, mm
+    pub physics_mm: f64,
+}
+
+impl Cv {
+    /// Whether the discrepancy beats the physics (and so is offered).
+    pub(crate) fn helps(&self) -> bool {
+        self.learned_mm < self.physics_mm
+    }
+}
+
 /// The z value of a two-sided 95 % band.
 const Z95: f64 = 1.959_963_984_540_054;
 
 /// The discrepancy fitted to the fitted model `model`'s errors `e` (positions), with
 /// what it leaves on every row, the report's account of it and its per-row standard
 /// deviation; `None` when it cannot be fitted (no input varies, too few rows).
+#[allow(clippy::type_complexity)]
 pub(crate) fn fit(
     start: &Start,
     model: &ModelSpec,
     e: &[RowError],
-) -> Option<(Empirical, Discrepancy, Vec<RowError>)> {
+) -> Option<(Empirical, Discrepancy, Vec<RowError>, Cv)> {
     let rec = start.rec;
     let mut joints = vec![Vec::new(); rec.rows.len()];
     for run in 0..rec.runs.len() {
@@ -154,8 +181,68 @@ pub(crate) fn fit(
         .map(|(v, (m, _))| [v[0] + m[0], v[1] + m[1], v[2] + m[2]])
         .collect();
     let left = with_angles(&left, e);
-    let report = account(start, &discrepancy, &left, &at, train.len());
-    Some((report, discrepancy, left))
+    let cv = cross_validated(start, &discrepancy, &kept, &train, e)?;
+    let mut report = account(start, &discrepancy, &left, &at, train.len());
+    report.method += &format!(
+        "; cross-validated over {CV_FOLDS} folds of those rows it leaves {:.3} mm against the \
+         physics' {:.3} mm",
+        cv.learned_mm, cv.physics_mm
+    );
+    Some((report, discrepancy, left, cv))
+}
+
+/// [`Cv`] of `d` (fitted on the rows `train`, whose inputs are `kept`) on `e` (the
+/// physics' errors): [`CV_FOLDS`] contiguous folds of the training rows (of a static
+/// set, of its poses), each predicted by `d`'s process conditioned on the others.
+fn cross_validated(
+    start: &Start,
+    d: &Discrepancy,
+    kept: &[Vec<f64>],
+    train: &[usize],
+    e: &[RowError],
+) -> Option<Cv> {
+    // the unit a fold keeps together: a static set's pose, else the row
+    let mut unit = vec![0; start.rec.rows.len()];
+    match &start.rec.poses {
+        Some(poses) => {
+            for (j, p) in poses.iter().enumerate() {
+                unit[p.rows.clone()].iter_mut().for_each(|u| *u = j);
+            }
+        }
+        None => unit.iter_mut().enumerate().for_each(|(r, u)| *u = r),
+    }
+    let units: Vec<usize> = train.iter().map(|&r| unit[r]).collect();
+    let mut distinct = units.clone();
+    distinct.dedup();
+    if distinct.len() < CV_FOLDS {
+        return None;
+    }
+    let fold_of = |u: usize| distinct.partition_point(|&x| x < u) * CV_FOLDS / distinct.len();
+    let (mut learned, mut physics, mut n) = (0.0, 0.0, 0usize);
+    for f in 0..CV_FOLDS {
+        let (inside, outside): (Vec<usize>, Vec<usize>) =
+            (0..train.len()).partition(|&i| fold_of(units[i]) == f);
+        let rest = Discrepancy {
+            train: outside.iter().map(|&i| d.train[i].clone()).collect(),
+            target_mm: outside.iter().map(|&i| d.target_mm[i]).collect(),
+            ..d.clone()
+        };
+        let gp = Gp::new(&rest).ok()?;
+        for &i in &inside {
+            let r = train[i];
+            let (m, _) = gp.at(&kept[r]);
+            for a in 0..3 {
+                learned += (e[r][a] + m[a]).powi(2);
+                physics += e[r][a].powi(2);
+            }
+            n += 1;
+        }
+    }
+    let rms = |s: f64| (s / n.max(1) as f64).sqrt();
+    Some(Cv {
+        learned_mm: rms(learned),
+        physics_mm: rms(physics),
+    })
 }
 
 /// Fewest training rows per input worth a process.

@@ -327,6 +327,7 @@ mod tests {
                     quaternion: None,
                     tangent: None,
                     force_n: [0.0; 3],
+                    frames: None,
                 }
             })
             .collect();
@@ -335,6 +336,7 @@ mod tests {
             n_tubes: 2,
             has_time: true,
             has_force: false,
+            poses: None,
             angular: None,
             runs: vec![Run {
                 label: "a".into(),

@@ -348,6 +348,25 @@ pub struct Report {
     /// within the warning margin of a snap or on an unstable branch (a jump in the data
     /// there is physics, not a tracker glitch).
     pub stability: Stability,
+    /// Pairs of runs that measured the same commanded joints farther apart than the
+    /// noise allows (`crate::sessions`); absent from the JSON when there are none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sessions: Vec<SessionChange>,
+}
+
+/// Two runs that disagree at the joints both commanded (`crate::sessions`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SessionChange {
+    /// The runs' labels, in file order.
+    pub runs: [String; 2],
+    /// Commanded joint vectors both ran.
+    pub configurations: usize,
+    /// RMS distance between their mean measured tips there, mm.
+    pub rms_mm: f64,
+    /// What the noise alone would give, mm.
+    pub noise_rms_mm: f64,
+    /// In words.
+    pub statement: String,
 }
 
 /// Held-out figures in words: `0.350 mm` of tip position, with `, 1.20 deg` of tip

@@ -23,6 +23,9 @@ impl Report {
                 run.why
             );
         }
+        for c in &self.sessions {
+            s += &format!("Sessions disagree: {}.\n", c.statement);
+        }
         if let Some(band) = self.empirical.as_ref().and_then(|e| e.band) {
             let emp = self.empirical.as_ref().expect("a band belongs to a term");
             let telling: Vec<String> = emp
@@ -52,13 +55,25 @@ impl Report {
                 }
             );
         } else if let Some(emp) = &self.empirical {
+            let not_offered = emp
+                .method
+                .split_once("; the learned discrepancy")
+                .map(|(_, why)| format!(" The learned discrepancy{why}."))
+                .unwrap_or_default();
+            if emp.terms == 0 {
+                s += &format!(
+                    "No empirical term beats the physics in cross-validation on the fit \
+                     rows.{not_offered}\n"
+                );
+                return s;
+            }
             let terms: Vec<String> = self
                 .dominant_terms()
                 .map(|t| format!("{} on {} ({:.2} mm)", t.feature, t.axis, t.rms_mm))
                 .collect();
             s += &format!(
                 "An empirical term (not physics, {} terms chosen by cross-validation on the \
-                 fit rows) leaves {:.3} mm held out; its largest terms: {}.\n",
+                 fit rows) leaves {:.3} mm held out; its largest terms: {}.{not_offered}\n",
                 emp.terms,
                 emp.heldout_rms_mm,
                 terms.join(", ")
@@ -107,21 +122,30 @@ impl Report {
     /// The plain-language summary (`ctr-cli diagnose` prints it; `ctr_py` returns it):
     /// the error, where it sits, each finding with its gain, and what is left.
     pub fn summary(&self, recording: &str) -> String {
-        let mut s = format!(
-            "{recording}: explained: {}: after fitting, {:.3} mm RMS of tip position is left \
-             on held-out rows (all rows counted) against {:.3} mm of noise estimated from the \
-             data{}.\n",
-            if self.explained { "yes" } else { "no" },
-            self.final_.heldout_rms_mm,
-            self.noise.rms_mm,
-            match (&self.final_.angular, &self.noise.angular) {
-                (Some(a), Some(n)) => format!(
-                    "; tip angle {:.2} deg against {:.2} deg of noise",
-                    a.heldout_rms_deg, n.rms_deg
-                ),
-                _ => String::new(),
-            }
-        );
+        let mut s = if !self.noise.rms_mm.is_finite() {
+            format!(
+                "{recording}: explained: cannot tell: after fitting, {:.3} mm RMS of tip \
+                 position is left on held-out rows (all rows counted), and the noise is \
+                 unknown ({}).\n",
+                self.final_.heldout_rms_mm, self.noise.method
+            )
+        } else {
+            format!(
+                "{recording}: explained: {}: after fitting, {:.3} mm RMS of tip position is \
+                 left on held-out rows (all rows counted) against {:.3} mm of noise estimated \
+                 from the data{}.\n",
+                if self.explained { "yes" } else { "no" },
+                self.final_.heldout_rms_mm,
+                self.noise.rms_mm,
+                match (&self.final_.angular, &self.noise.angular) {
+                    (Some(a), Some(n)) => format!(
+                        "; tip angle {:.2} deg against {:.2} deg of noise",
+                        a.heldout_rms_deg, n.rms_deg
+                    ),
+                    _ => String::new(),
+                }
+            )
+        };
         s += &format!(
             "The model misses the measured tip by {:.3} mm RMS ({:.3} mm on held-out rows, \
              largest {:.3} mm){}.\n",

@@ -72,6 +72,24 @@ pub(crate) struct Screened {
     pub projected: f64,
 }
 
+/// Every `every`-th of `rows` (ascending) counted from each run's first of them: a
+/// run's sample is the same rows wherever the run stands in the file (a screen that
+/// ends in another basin when the runs are reordered would change the account).
+fn every_in_runs(rec: &Recording, rows: &[usize], every: usize) -> Vec<usize> {
+    let mut out = Vec::with_capacity(rows.len() / every.max(1) + rec.runs.len());
+    let (mut run, mut k) = (usize::MAX, 0);
+    for &r in rows {
+        if rec.rows[r].run != run {
+            (run, k) = (rec.rows[r].run, 0);
+        }
+        if k % every.max(1) == 0 {
+            out.push(r);
+        }
+        k += 1;
+    }
+    out
+}
+
 impl<'a> Screen<'a> {
     /// The screen of candidates added to `current`, which holds the effects `held`,
     /// on a sample of `fit_rows` (`threads` for the held effects' Jacobian).
@@ -87,7 +105,7 @@ impl<'a> Screen<'a> {
         let mut screen = Screen {
             base: current.clone(),
             rec,
-            rows: fit_rows.iter().copied().step_by(every).collect(),
+            rows: every_in_runs(rec, fit_rows, every),
             every,
             huber_mm,
             cost0: f64::INFINITY,
@@ -125,7 +143,7 @@ impl<'a> Screen<'a> {
     fn fit_coarse(&self, c: EffectId, x0: &[f64]) -> Option<Fitted> {
         let mut p = self.problem(vec![c]);
         let every = p.rows.len().div_ceil(COARSE_ROWS).max(1);
-        p.rows = p.rows.iter().copied().step_by(every).collect();
+        p.rows = every_in_runs(self.rec, &p.rows, every);
         p.fit(x0, MAX_FIT_ITERATIONS)
     }
 

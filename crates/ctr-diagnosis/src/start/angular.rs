@@ -86,12 +86,40 @@ pub(crate) fn rotations(
 }
 
 /// Noise per angular component, rad, from the second differences of `omega` along
-/// each run, and the number of row triples it used.
+/// each run (of a static set, from its repeats: [`crate::start::repeats`], the
+/// components in the measured tangent's normal plane for a tangent), and the number of
+/// row triples (rows of a static set) it used.
 pub(crate) fn estimate(
     rec: &Recording,
     columns: AngularColumns,
     omega: &[[f64; 3]],
 ) -> (f64, usize) {
+    if rec.is_static() {
+        let repeats = crate::start::repeats::Repeats::of(rec);
+        // one plane per configuration: its first row's measured tangent's
+        let first: Vec<usize> = crate::start::repeats::companions(rec)
+            .iter()
+            .enumerate()
+            .map(|(r, c)| c.iter().copied().fold(r, usize::min))
+            .collect();
+        let in_plane = |r: usize| -> [f64; 3] {
+            let d = Vector3::from(omega[r]);
+            match (columns, rec.rows[first[r]].tangent) {
+                (AngularColumns::Tangent, Some(t)) => {
+                    let t = Vector3::from(t);
+                    let u = t.cross(&least_aligned(&t)).normalize();
+                    let w = t.cross(&u);
+                    [d.dot(&u), d.dot(&w), f64::NAN]
+                }
+                _ => omega[r],
+            }
+        };
+        return match repeats {
+            // averaged frames say nothing of their angles' scatter
+            crate::start::repeats::Repeats::Averaged => (f64::NAN, 0),
+            _ => (repeats.sigma(rec, in_plane).0, rec.rows.len()),
+        };
+    }
     let mut d2 = Vec::new();
     let mut triples = 0;
     for run in &rec.runs {

@@ -4,6 +4,7 @@
 
 pub(crate) mod angular;
 pub(crate) mod noise;
+pub(crate) mod repeats;
 pub(crate) mod split;
 pub(crate) mod weighting;
 

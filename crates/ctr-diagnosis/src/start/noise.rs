@@ -5,6 +5,7 @@ use crate::report::{AngularNoise, Noise};
 use crate::residual::{components, RowError, WIDTH};
 pub(crate) use crate::robust::median;
 use crate::robust::{sigma_of_second_differences, MAD_TO_SIGMA};
+use crate::start::repeats;
 use ctr_formats::{AngularColumns, Recording};
 
 /// What is left counts as noise when its RMS is at most this many times the noise
@@ -16,21 +17,46 @@ pub const NOISE_TOLERANCE: f64 = 1.15;
 pub const OUTLIER_SIGMAS: f64 = 6.0;
 
 /// Noise per axis from the second differences of the position errors of `e` along
-/// each run. Its `rms_mm` is that of a row's position: `sqrt(3) sigma`; weighted
+/// each run (of a static set, from its repeats: `crate::start::repeats`; NaN where
+/// nothing repeats). Its `rms_mm` is that of a row's position: `sqrt(3) sigma`; weighted
 /// angular columns have their own beside it (`angular`), and the whole row's,
 /// `sqrt(3 sigma^2 + k sigma_w^2)` with `k` angular components (`sigma_w` the position
 /// noise they were weighted against: `crate::start::angular`), is
 /// `Noise::weighted_rms`.
 pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
-    let mut d2 = Vec::new();
-    for run in &rec.runs {
-        for k in run.rows.start + 1..run.rows.end.saturating_sub(1) {
-            for a in 0..3 {
-                d2.push(e[k - 1][a] - 2.0 * e[k][a] + e[k + 1][a]);
+    let in_plane = match rec.angular_columns() {
+        Some(AngularColumns::Tangent) => ", in the plane normal to the measured tangent",
+        _ => "",
+    };
+    let (sigma, method, angular_method) = if rec.is_static() {
+        let (sigma, method) = repeats::position_sigma(rec, e);
+        let angular = format!(
+            "{} of the user model's angular error{in_plane}",
+            method.split(':').next().unwrap_or("from repeats")
+        );
+        (sigma, method, angular)
+    } else {
+        let mut d2 = Vec::new();
+        for run in &rec.runs {
+            for k in run.rows.start + 1..run.rows.end.saturating_sub(1) {
+                for a in 0..3 {
+                    d2.push(e[k - 1][a] - 2.0 * e[k][a] + e[k + 1][a]);
+                }
             }
         }
-    }
-    let sigma = sigma_of_second_differences(&d2);
+        let triples = d2.len() / 3;
+        (
+            sigma_of_second_differences(&d2),
+            format!(
+                "median absolute deviation of the residual's second differences along the \
+                 runs ({triples} triples of rows)"
+            ),
+            format!(
+                "median absolute deviation of the user model's angular error's second \
+                 differences along the runs ({triples} triples of rows{in_plane})"
+            ),
+        )
+    };
     let rms_mm = 3f64.sqrt() * sigma;
     let weighted_rms = match rec.angular {
         None => rms_mm,
@@ -42,12 +68,8 @@ pub fn estimate_noise(rec: &Recording, e: &[[f64; 3]]) -> Noise {
         sigma_mm_per_axis: sigma,
         rms_mm,
         weighted_rms,
-        method: format!(
-            "median absolute deviation of the residual's second differences along the runs \
-             ({} triples of rows)",
-            d2.len() / 3
-        ),
-        angular: angular_report(rec, d2.len() / 3),
+        method,
+        angular: angular_report(rec, &angular_method),
     }
 }
 
@@ -82,6 +104,9 @@ pub(crate) fn outlier_rows(rec: &Recording, e: &[RowError]) -> (Vec<usize>, f64)
             .sum::<f64>()
             .sqrt()
     };
+    // a static set's neighbouring rows are other configurations: a row is compared with
+    // the other rows of its own (`repeats::companions`), if it has any
+    let companions = rec.is_static().then(|| repeats::companions(rec));
     let mut rows = Vec::new();
     for run in &rec.runs {
         for r in run.rows.clone() {
@@ -90,7 +115,10 @@ pub(crate) fn outlier_rows(rec: &Recording, e: &[RowError]) -> (Vec<usize>, f64)
             }
             let lo = r.saturating_sub(NEIGHBOURS).max(run.rows.start);
             let hi = (r + NEIGHBOURS + 1).min(run.rows.end);
-            let near: Vec<usize> = (lo..hi).filter(|&k| k != r).collect();
+            let near: Vec<usize> = match &companions {
+                Some(c) => c[r].clone(),
+                None => (lo..hi).filter(|&k| k != r).collect(),
+            };
             let local = if near.is_empty() {
                 centre
             } else {
@@ -113,20 +141,26 @@ pub const NEIGHBOURS: usize = 2;
 /// Fewest rows for a robust spread.
 const MIN_ROWS_FOR_OUTLIERS: usize = 9;
 
-/// The outlier rule in words, for the report.
-pub(crate) fn outlier_rule() -> String {
+/// The outlier rule in words, for the report on `rec`.
+pub(crate) fn outlier_rule(rec: &Recording) -> String {
+    let near = if rec.is_static() {
+        "the other rows measuring its configuration (a static set's neighbouring rows are \
+         other configurations; a configuration measured once: the residual's median alone)"
+            .to_owned()
+    } else {
+        format!("its {NEIGHBOURS} neighbours on each side in its run")
+    };
     format!(
         "a row is a tracker outlier when its final error (after the physics and the empirical \
          term) lies more than {OUTLIER_SIGMAS} robust standard deviations (per axis, \
          {MAD_TO_SIGMA} x the median absolute deviation of that residual) both from the \
-         residual's median and from the median of its {NEIGHBOURS} neighbours on each side \
-         in its run"
+         residual's median and from the median of {near}"
     )
 }
 
-/// The report's account of the angular columns of `rec` (`triples`: the row triples of
-/// the noise estimate); `None` when it has none.
-fn angular_report(rec: &Recording, triples: usize) -> Option<AngularNoise> {
+/// The report's account of the angular columns of `rec` (`how`: how their noise was
+/// estimated); `None` when it has none.
+fn angular_report(rec: &Recording, how: &str) -> Option<AngularNoise> {
     let columns = rec.angular_columns()?;
     Some(match rec.angular {
         Some(w) => AngularNoise {
@@ -136,16 +170,11 @@ fn angular_report(rec: &Recording, triples: usize) -> Option<AngularNoise> {
             rms_deg: (columns.components() as f64).sqrt() * w.sigma_rad.to_degrees(),
             mm_per_deg: w.mm_per_rad().to_radians(),
             method: format!(
-                "median absolute deviation of the user model's angular error's second \
-                 differences along the runs ({triples} triples of rows{}); each angular \
+                "{how}; each angular \
                  component enters the residual as mm_per_deg x its error in degrees (the \
                  position noise over the angular noise): the fits weigh positions and angles \
                  whitened alike, and the report's figures keep them apart (mm of tip \
-                 position, degrees of tip angle)",
-                match columns {
-                    AngularColumns::Tangent => ", in the plane normal to the measured tangent",
-                    AngularColumns::Orientation => "",
-                }
+                 position, degrees of tip angle)"
             ),
         },
         None => AngularNoise {
@@ -155,7 +184,8 @@ fn angular_report(rec: &Recording, triples: usize) -> Option<AngularNoise> {
             rms_deg: f64::NAN,
             mm_per_deg: 0.0,
             method: "not used: their noise (or the positions') cannot be estimated from the \
-                     data (too few rows along the runs, or none at all)"
+                     data (too few rows along the runs, or none at all; of a static set, \
+                     nothing repeats)"
                 .into(),
         },
     })

@@ -1,5 +1,7 @@
 //! The split of the rows into fit and held-out parts: contiguous blocks of every run, or
-//! whole runs by label, never random rows (neighbouring samples share their errors).
+//! whole runs by label, never random rows (neighbouring samples share their errors). A
+//! static configuration set (`ctr_formats::poses`) is split by poses, a pose's frames
+//! together: its neighbouring rows are other configurations.
 
 use crate::error::DiagnoseError;
 use ctr_formats::Recording;
@@ -14,7 +16,9 @@ const BLOCKS_PER_RUN: usize = 8;
 pub enum Holdout {
     /// Each run in contiguous blocks (up to 8, at least 10 rows each); every `every`-th
     /// block is held out, staggered from run to run. Runs too short for two blocks are
-    /// fitted whole.
+    /// fitted whole; where every run is, one run in `every` is held out whole (the last
+    /// when there are fewer). A static set: one pose in `every` (in file order, its
+    /// frames together), whatever its runs' lengths.
     Blocks {
         /// one block in `every` is held out (>= 2)
         every: usize,
@@ -55,10 +59,46 @@ impl Default for Holdout {
     }
 }
 
+/// Holds out one run in `every` of `rec` (the last when there are fewer) in `held`:
+/// the default split where no run is long enough for blocks. The split in words.
+fn whole_runs(rec: &Recording, every: usize, held: &mut [bool]) -> String {
+    let n = rec.runs.len();
+    let chosen: Vec<usize> = if n < every {
+        vec![n - 1]
+    } else {
+        (0..n).filter(|i| i % every == every - 1).collect()
+    };
+    for &i in &chosen {
+        held[rec.runs[i].rows.clone()]
+            .iter_mut()
+            .for_each(|h| *h = true);
+    }
+    let labels: Vec<&str> = chosen.iter().map(|&i| rec.runs[i].label.as_str()).collect();
+    format!(
+        "runs {} held out whole: every run is shorter than two blocks of {MIN_BLOCK_ROWS} rows, \
+         so one run in {every} (the last when there are fewer) is held out instead of blocks",
+        labels.join(", ")
+    )
+}
+
 /// Which rows are held out.
 pub fn split(rec: &Recording, holdout: &Holdout) -> Result<(Vec<bool>, String), DiagnoseError> {
     let mut held = vec![false; rec.rows.len()];
     let method = match holdout {
+        Holdout::Blocks { every } if rec.is_static() => {
+            let every = (*every).max(2);
+            let poses = rec.poses.as_deref().unwrap_or_default();
+            for (j, pose) in poses.iter().enumerate() {
+                if j % every == every - 1 {
+                    held[pose.rows.clone()].iter_mut().for_each(|h| *h = true);
+                }
+            }
+            format!(
+                "a static configuration set: one pose in {every} held out (in file order, a \
+                 pose's frames together; its neighbouring rows are other configurations, so \
+                 not blocks of rows)"
+            )
+        }
         Holdout::Blocks { every } => {
             let every = (*every).max(2);
             for (i, run) in rec.runs.iter().enumerate() {
@@ -75,10 +115,14 @@ pub fn split(rec: &Recording, holdout: &Holdout) -> Result<(Vec<bool>, String), 
                     }
                 }
             }
-            format!(
-                "each run in up to {BLOCKS_PER_RUN} contiguous blocks of at least \
-                 {MIN_BLOCK_ROWS} rows; one block in {every} held out, staggered between runs"
-            )
+            if !held.contains(&true) && rec.runs.len() >= 2 {
+                whole_runs(rec, every, &mut held)
+            } else {
+                format!(
+                    "each run in up to {BLOCKS_PER_RUN} contiguous blocks of at least \
+                     {MIN_BLOCK_ROWS} rows; one block in {every} held out, staggered between runs"
+                )
+            }
         }
         Holdout::Runs(labels) => {
             for l in labels {

@@ -63,6 +63,7 @@
 //! ```
 
 pub(crate) mod reframe;
+pub(crate) mod statics;
 pub(crate) mod unmodelled;
 
 pub use crate::synth::reframe::{
@@ -70,6 +71,7 @@ pub use crate::synth::reframe::{
     DRAW_MAX_SHIFT_MM, DRAW_MAX_TURN_DEG, DRAW_MAX_ZERO_DEG, DRAW_MAX_ZERO_MM, DRAW_SHIFT_S,
     FRAME_TOLERANCE, SHIFT_TOLERANCE_S, ZERO_TOLERANCE,
 };
+pub use crate::synth::statics::{static_set, StaticSpec};
 pub use crate::synth::unmodelled::{Unmodelled, WANDER_COMPONENTS, WANDER_PERIOD_SPAN};
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
@@ -542,6 +544,7 @@ fn as_commanded(n: usize, commanded: &[CommandedRun], spec: &SynthSpec) -> Recor
                 quaternion: None,
                 tangent: None,
                 force_n: [0.0; 3],
+                frames: None,
             });
         }
         runs.push(Run {
@@ -557,6 +560,7 @@ fn as_commanded(n: usize, commanded: &[CommandedRun], spec: &SynthSpec) -> Recor
         runs,
         has_time: true,
         has_force: false,
+        poses: None,
         angular: None,
     }
 }
@@ -621,10 +625,12 @@ fn tracker_noise(spec: &SynthSpec, rng: &mut Rng, total: usize) -> (Vec<[f64; 3]
     (noise, outlier_rows)
 }
 
-/// Writes a recording as the contract's recording CSV: `t_s,run`, the joint columns,
-/// `x_mm,y_mm,z_mm`, then `qw,qx,qy,qz` when every row has an orientation, `tx,ty,tz`
-/// when every row has a tangent and `fx_n,fy_n,fz_n` when the recording has forces. Numbers in Rust's shortest
-/// round-trip form ([`format_float`]): [`Recording::read`] gives the same rows back.
+/// Writes a recording as the contract's recording CSV: `t_s,run` (`run` alone without
+/// times), a static set's `pose` and `n_frames,spread_mm` ([`statics`]), the joint
+/// columns, `x_mm,y_mm,z_mm`, then `qw,qx,qy,qz` when every row has an orientation,
+/// `tx,ty,tz` when every row has a tangent and `fx_n,fy_n,fz_n` when the recording has
+/// forces. Numbers in Rust's shortest round-trip form ([`format_float`]):
+/// [`Recording::read`] gives the same rows back.
 ///
 /// ```
 /// use ctr_formats::Recording;
@@ -637,7 +643,13 @@ fn tracker_noise(spec: &SynthSpec, rng: &mut Rng, total: usize) -> (Vec<[f64; 3]
 /// ```
 pub fn write_csv(rec: &Recording, out: impl Write) -> io::Result<()> {
     let quaternions = !rec.rows.is_empty() && rec.rows.iter().all(|r| r.quaternion.is_some());
-    let mut header = vec!["t_s".to_owned(), "run".to_owned()];
+    let mut header = Vec::new();
+    if rec.has_time {
+        header.push("t_s".to_owned());
+    }
+    header.push("run".to_owned());
+    let statics = statics::StaticColumns::of(rec);
+    header.extend(statics.iter().flat_map(statics::StaticColumns::names));
     header.extend(joint_columns(rec.n_tubes));
     header.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
     if quaternions {
@@ -655,10 +667,13 @@ pub fn write_csv(rec: &Recording, out: impl Write) -> io::Result<()> {
         .from_writer(out);
     w.write_record(&header)?;
     let mut record: Vec<String> = Vec::with_capacity(header.len());
-    for row in &rec.rows {
+    for (r, row) in rec.rows.iter().enumerate() {
         record.clear();
-        record.push(format_float(row.t_s));
+        if rec.has_time {
+            record.push(format_float(row.t_s));
+        }
         record.push(rec.runs[row.run].label.clone());
+        record.extend(statics.iter().flat_map(|s| s.cells(rec, r)));
         record.extend(row.q.iter().map(|&v| format_float(v)));
         record.extend(row.p.iter().map(|&v| format_float(v)));
         if let (true, Some(q)) = (quaternions, row.quaternion) {

@@ -143,8 +143,8 @@ impl Reframe {
                 }
             }
             Reframe::TimeShift { shift_s } => {
-                if !rec.has_time {
-                    return Err("a time shift needs a t_s column".into());
+                if !rec.has_time || rec.is_static() {
+                    return Err("a time shift needs a time series (a t_s column)".into());
                 }
                 if shift_s.is_nan() || shift_s < 0.0 {
                     return Err(format!("time shift {shift_s} s: wanted at least 0"));
@@ -232,7 +232,11 @@ impl Reframe {
     /// in [`DRAW_GLITCH_SHARE`], the runs reordered, or the rows thinned, each kind as
     /// likely.
     pub fn draw(rng: &mut Rng, rec: &Recording, valid: impl Fn(&[f64]) -> bool) -> Reframe {
-        let kinds = if rec.has_time { 6 } else { 5 };
+        let kinds = if rec.has_time && !rec.is_static() {
+            6
+        } else {
+            5
+        };
         let between = |rng: &mut Rng, [lo, hi]: [f64; 2]| lo + (hi - lo) * rng.uniform();
         let signed = |rng: &mut Rng, size: f64| size * (2.0 * rng.uniform() - 1.0);
         match rng.below(kinds) {
@@ -248,17 +252,19 @@ impl Reframe {
                 let tube = rng.below(rec.n_tubes.max(1));
                 let rotation_deg = signed(rng, DRAW_MAX_ZERO_DEG);
                 let mut feed_mm = signed(rng, DRAW_MAX_ZERO_MM);
-                // the feeds' order kept: halved until every row stays valid
-                for _ in 0..8 {
-                    let ok = rec.rows.iter().all(|row| {
+                // the feeds' order and lengths kept: halved (and turned round) until
+                // every row stays valid, else no feed at all
+                let keeps = |feed_mm: f64| {
+                    rec.rows.iter().all(|row| {
                         let mut q = row.q.clone();
                         q[2 * tube] += feed_mm;
                         valid(&q) || !valid(&row.q)
-                    });
-                    if ok {
-                        break;
-                    }
-                    feed_mm *= 0.5;
+                    })
+                };
+                let mut tries = 0;
+                while !keeps(feed_mm) {
+                    tries += 1;
+                    feed_mm = if tries > 16 { 0.0 } else { -0.5 * feed_mm };
                 }
                 Reframe::EncoderZero {
                     tube,
@@ -531,13 +537,15 @@ fn joints_at(rows: &[ctr_formats::RecordedRow], t: f64) -> Vec<f64> {
 }
 
 /// `rec` with its runs in the order `order`, of each run the rows `keep` takes (by
-/// their index within the run), the lines numbered again in the new order.
+/// their index within the run), the lines numbered again in the new order (a static
+/// set's poses follow their rows; a pose none of whose rows is kept goes).
 fn with_runs(rec: &Recording, order: &[usize], keep: impl Fn(usize) -> bool) -> Recording {
     let mut out = Recording {
         rows: Vec::with_capacity(rec.rows.len()),
         runs: Vec::with_capacity(order.len()),
         ..rec.clone()
     };
+    let mut moved = vec![None; rec.rows.len()];
     for &i in order {
         let run = &rec.runs[i];
         let start = out.rows.len();
@@ -546,6 +554,7 @@ fn with_runs(rec: &Recording, order: &[usize], keep: impl Fn(usize) -> bool) -> 
                 let mut r = row.clone();
                 r.run = out.runs.len();
                 r.line = out.rows.len() + 2;
+                moved[run.rows.start + k] = Some(out.rows.len());
                 out.rows.push(r);
             }
         }
@@ -554,6 +563,20 @@ fn with_runs(rec: &Recording, order: &[usize], keep: impl Fn(usize) -> bool) -> 
             rows: start..out.rows.len(),
         });
     }
+    out.poses = rec.poses.as_ref().map(|poses| {
+        let mut kept: Vec<ctr_formats::Pose> = poses
+            .iter()
+            .filter_map(|p| {
+                let rows: Vec<usize> = p.rows.clone().filter_map(|r| moved[r]).collect();
+                Some(ctr_formats::Pose {
+                    label: p.label.clone(),
+                    rows: *rows.first()?..rows.last()? + 1,
+                })
+            })
+            .collect();
+        kept.sort_by_key(|p| p.rows.start);
+        kept
+    });
     out
 }
 

@@ -176,6 +176,8 @@ struct FileForm<'a> {
     b: EffectId,
     /// The block's first parameter.
     at: usize,
+    /// The file values' paths in the table ([`leaves`]' names), at the fit.
+    keys: Vec<String>,
     /// The file values at the fit.
     base: Vec<f64>,
     /// Whether each file value is an angle in degrees.
@@ -202,6 +204,7 @@ impl<'a> FileForm<'a> {
             problem,
             b,
             at,
+            keys: v0.iter().map(|(k, _)| k.clone()).collect(),
             base: v0.iter().map(|(_, v)| *v).collect(),
             degrees: v0.iter().map(|(k, _)| k.contains("_deg")).collect(),
             g: DMatrix::zeros(0, 0),
@@ -215,11 +218,21 @@ impl<'a> FileForm<'a> {
         self.g.ncols()
     }
 
-    /// The file values at parameters `x`, as the file writes them.
+    /// The file values at parameters `x`, as the file writes them, each by its path at
+    /// the fit: a value the file leaves out at `x` is 0 (friction's coefficients are
+    /// not written where all are 0), so that no value stands in another's place (the
+    /// coefficient's interval once ended at the play's value, the next in the table).
     fn raw(&self, x: &[f64]) -> Vec<f64> {
         let mut v = Vec::new();
         leaves(&parameters(self.b, &self.problem.model(x)), "", &mut v);
-        v.into_iter().map(|(_, v)| v).collect()
+        self.keys
+            .iter()
+            .map(|k| {
+                v.iter()
+                    .find(|(name, _)| name == k)
+                    .map_or(0.0, |(_, x)| *x)
+            })
+            .collect()
     }
 
     /// File value `o` equal to `v`, an angle unwrapped to within 180 deg of its value

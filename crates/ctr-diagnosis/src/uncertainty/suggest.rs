@@ -271,6 +271,7 @@ fn as_recording(rec: &Recording, name: &str, q: &[Vec<f64>], period_s: f64) -> R
                 quaternion: None,
                 tangent: None,
                 force_n: [0.0; 3],
+                frames: None,
             })
             .collect(),
         runs: vec![Run {
@@ -279,6 +280,7 @@ fn as_recording(rec: &Recording, name: &str, q: &[Vec<f64>], period_s: f64) -> R
         }],
         has_time: rec.has_time,
         has_force: false,
+        poses: None,
         angular: None,
     }
 }

@@ -106,3 +106,47 @@ impl Tally {
         }
     }
 }
+
+/// Every `ci95` interval of `r`'s findings that does not hold its own parameter's value
+/// (an angle of a peak or a rotation up to whole turns), in words: none is expected
+/// (issue 42: an interval's end once was another parameter's value).
+pub fn intervals_not_holding_their_values(r: &ctr_diagnosis::Report) -> Vec<String> {
+    let mut out = Vec::new();
+    for f in &r.findings {
+        let mut values = Vec::new();
+        numbers(&f.parameters, "", &mut values);
+        for (path, v) in values {
+            // `.key[i]` -> the interval node at the same place
+            let mut node = &f.ci95;
+            for part in path.trim_start_matches('.').split('.') {
+                let (key, index) = match part.split_once('[') {
+                    Some((k, i)) => (k, i.trim_end_matches(']').parse::<usize>().ok()),
+                    None => (part, None),
+                };
+                node = &node[key];
+                if let Some(i) = index {
+                    node = &node[i];
+                }
+            }
+            let (Some(lo), Some(hi)) = (node[0].as_f64(), node[1].as_f64()) else {
+                continue; // an open end, or no interval here
+            };
+            let turns: &[f64] = if path.contains("peak_deg") || path.contains("rotation_deg") {
+                &[0.0, 360.0, -360.0]
+            } else {
+                &[0.0]
+            };
+            let slack = 1e-9 * (1.0 + v.abs());
+            if !turns
+                .iter()
+                .any(|t| lo - slack <= v + t && v + t <= hi + slack)
+            {
+                out.push(format!(
+                    "{} {path} = {v}: ci95 [{lo}, {hi}]",
+                    f.effect.as_str()
+                ));
+            }
+        }
+    }
+    out
+}
