@@ -1,5 +1,6 @@
-//! The std layer shared by the CLI and the Python wheel: the row model, batches, the
-//! timeline of time effects, simulation of recordings, inverse kinematics, diagnosis.
+//! The std layer shared by the CLI, the Python wheel and the diagnosis (`ctr-diagnosis`):
+//! the row model, batches, the timeline of time effects, simulation of recordings,
+//! inverse kinematics, the stability margin and the learned discrepancy's evaluation.
 //!
 //! Data flows one way: files ([`ctr_formats`]) -> a validated robot ([`AnyRobot`](ctr_formats::AnyRobot), the
 //! core's `Robot<f64, N>` for a tube count known at run time) and checked joints or
@@ -10,6 +11,13 @@
 //! tip or joint files. [`job`] strings these together for `ctr-cli fk` and `ctr-cli ik`.
 //! The forward numerics are the core's; this crate prepares rows for it, dispatches,
 //! and solves the inverse problem on top of the core's forward kinematics.
+//!
+//! Beside them: [`timeline`] (latency and the play-operator friction along a run, with
+//! [`contact`]'s friction that grows with the contact moment), [`limits`] (the joint
+//! ranges the IK keeps), [`margin`] (the stability margin: the joint distance to the
+//! nearest snap), [`discrepancy`] and [`learned`] (the `[model.discrepancy]` Gaussian
+//! process over the joints and their history, evaluated along each run) and [`rng`] (the
+//! one seeded random generator).
 //!
 //! ```
 //! use ctr_analysis::model::ModelSpec;

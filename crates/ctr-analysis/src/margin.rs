@@ -107,7 +107,7 @@ pub const FADE_FROM: f64 = 0.5;
 /// marking rows near a snap): a margin this small is about a degree of rotation or a
 /// millimetre of feed from a snap (module doc); on 2-degree sweeps of the seed's
 /// robot with long transmissions it flags the last row before every snap and no row of
-/// the sweeps that do not snap (README, "Snap-through").
+/// the sweeps that do not snap (`docs/snap-through.md`).
 pub const DEFAULT_WARN_MARGIN: f64 = 0.05;
 
 /// Step of the margin's forward differences (backward where the forward probe crosses the

@@ -442,7 +442,7 @@ pub struct FkArgs {
 
     /// Append a stability_margin column: each row's distance to the nearest snap in joint
     /// space over 20 degrees or mm, capped at 1 (0 at a snap, negative on an unstable
-    /// branch; README, "Snap-through").
+    /// branch; docs/snap-through.md).
     #[arg(long)]
     pub margin: bool,
 

@@ -1,4 +1,11 @@
-//! `ctr-cli`: batch kinematics of concentric tube robots, and the servo rig ([`hw`]).
+//! `ctr-cli`: batch kinematics of concentric tube robots (`fk`, `ik`), the diagnosis,
+//! calibration and evaluation of models against recordings (`diagnose`, `calibrate`,
+//! `evaluate`: [`diagnose`]), and the servo rig (`hw`: [`hw`]).
+//!
+//! The work is the libraries': `ctr_analysis::job` runs `fk` and `ik` files to files,
+//! `ctr_diagnosis` the diagnosis, `ctr_hw` the rig; this crate parses the options
+//! ([`cli`], all of them in one place), prints, and shows a progress bar on a terminal
+//! ([`progress`]).
 //!
 //! `main` parses the options ([`cli`]), runs the command and maps the outcome to an exit
 //! status: 0 success, 1 solves that did not converge under `--on-error fail`, targets

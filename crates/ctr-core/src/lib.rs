@@ -7,6 +7,16 @@
 //! (2023) 3709, generalised to `N` tubes (1 to [`MAX_TUBES`]) with the transmissions
 //! behind the guide twisting too; the equations are in [`integrate::twist`].
 //!
+//! One [`Request`] a [`Solver`] answers: the tip pose under the rigid or the torsion
+//! model, with effects ([`Effects`]: joint offsets, clearance kinks, the tracker's
+//! frame, the sensor's place), loads ([`Loads`]: the tubes' weight and a tip force and
+//! moment, as Cosserat statics) or friction moments, the joint or parameter Jacobian or
+//! the compliance written into the caller's buffers, and the backbone. Every
+//! [`Solution`] carries its [`Status`] (a solve that does not converge is a status, not
+//! an error) and its signed softest twist mode; where the branch a warm start was on
+//! ends, the solver follows the robot to the stable equilibrium it snaps to. Generic
+//! over `f64` and `f32` ([`Real`]).
+//!
 //! Conventions (`docs/formats.md`): tube 1 (index 0) is the outermost; `s_i` is
 //! tube i's exposed length beyond the guide exit, `theta_i` its actuator angle about +z;
 //! W has its origin at the guide exit and +z along insertion, +x where tube 1 bends with
@@ -34,7 +44,7 @@
 //! - [`integrate`]: one RK4 over the twist, variation and loaded states, and the pass
 //!   along the backbone;
 //! - [`solve`]: the one [`Request`] a [`Solver`] answers, Newton's loop, the shooting,
-//!   the loaded model, the Jacobians.
+//!   the loaded model, the Jacobians, the softest mode and its gradient, the snap.
 #![no_std]
 #![forbid(unsafe_code)]
 

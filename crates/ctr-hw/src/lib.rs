@@ -11,7 +11,15 @@
 //!   checks, for the joints of a robot file's `[actuation]` (`ctr_formats::ActuatedJoint`:
 //!   `s1`, `theta1`, ...);
 //! * [`rig`]: moves joints, reads them back and stops on faults;
-//! * [`emulator`]: an in-process four-motor bus for tests and for `ctr-cli hw emulate`.
+//! * [`emulator`]: an in-process bus (four motors by default, any IDs) with fault
+//!   injection, for tests and for `ctr-cli hw emulate`;
+//! * [`control_table`]: the X-series control table's addresses, sizes and units that the
+//!   rig and the emulator share.
+//!
+//! `ctr-cli hw` (`ping`, `home`, `move`, `run`, `emulate`) drives a robot file's
+//! `[actuation]` through these layers; `run` writes the contract's recording row by row
+//! into a journal (`ctr_formats::RecordingWriter`), so a stopped or killed run keeps
+//! every completed row.
 //!
 //! ```
 //! use ctr_hw::emulator::{Emulator, EmulatorConfig};

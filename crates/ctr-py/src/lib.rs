@@ -9,10 +9,15 @@
 //!
 //! The Python package (`python/ctr_py`) re-exports this module's classes beside its
 //! pure-Python exception classes; `_ctr.pyi` there documents the Python API.
-//! Recordings, diagnosis, calibration and evaluation (`ctr_py.read_recording`,
-//! `ctr_py.diagnose`, `ctr_py.calibrate`, `ctr_py.evaluate`) are module functions in
-//! modules `recording` and `diagnosis`, over `ctr_diagnosis`, as `ctr-cli diagnose`
-//! calls it.
+//! `Robot` (module `robot`) holds a validated robot file with its model: batch `fk`
+//! (with margins, the time effects along `t_s`, the learned discrepancy and its band)
+//! and `ik` equal to `ctr-cli fk` and `ctr-cli ik` bit for bit, `jacobian`,
+//! `backbone`. Recordings, diagnosis, calibration and evaluation
+//! (`ctr_py.read_recording`, `ctr_py.diagnose`, `ctr_py.calibrate`, `ctr_py.evaluate`)
+//! are module functions in modules `recording` and `diagnosis`, over `ctr_diagnosis`,
+//! as `ctr-cli diagnose` calls it; a `Report` keeps the report parsed once (module
+//! `json`) and gives its JSON, summary, HTML page and fitted robots. Robots,
+//! recordings and reports pickle, for worker processes (Dask).
 //!
 //! Rust tests here never start an interpreter (see the toolchain notes): the Python
 //! side is tested with pytest under `tests/python/`.

@@ -174,7 +174,7 @@ class Robot:
         margin, shape ``(m,)`` (a float for one row), the CLI's ``--margin`` column: the
         joint distance to the nearest snap over 20 degrees of rotation or mm of feed,
         capped at 1 (1: no snap within about 20 degrees or mm; 0.05: about one away),
-        0 at a snap, negative on an unstable branch (see the README, "Snap-through"). Rows are solved as the CLI solves a file, so a batch along a
+        0 at a snap, negative on an unstable branch (see ``docs/snap-through.md``). Rows are solved as the CLI solves a file, so a batch along a
         path follows the branch the robot follows.
 
         Effects: the robot file's ``[model.effects]`` are applied as ``ctr-cli fk``
@@ -635,7 +635,8 @@ class Report:
         """What is left, in words (whether it is consistent with the noise)."""
     @property
     def noise(self) -> Noise:
-        """The noise estimated from the data (second differences along the runs)."""
+        """The noise estimated from the data (second differences along the runs; of a
+        static configuration set, from its repeats, or unknown where nothing repeats)."""
     @property
     def split(self) -> Split:
         """The split used."""
@@ -721,7 +722,7 @@ def diagnose(
 
     Splits the rows (``holdout``), estimates the noise, locates the error, then adds
     the left-out effects that explain it, one at a time, each fitted and kept only
-    when it lowers the error on the held-out rows; see the README and
+    when it lowers the error on the held-out rows; see ``docs/diagnosis.md`` and
     ``ctr_diagnosis``. The report equals the CLI's for the same inputs.
 
     ``recording``: a :class:`Recording` read for the robot's tube count, or a path
