@@ -21,7 +21,8 @@
 //!   `1/2 tr((K^-1 Y Y^T K^-1 - 3 K^-1) dK)`; the play width by the same likelihood
 //!   over [`PLAY_WIDTHS_DEG`]. No held-out row takes part.
 //! - **Offered only where it helps** (`crate::verdict`): [`CV_FOLDS`]-fold
-//!   cross-validation over the training rows (contiguous folds; a static set's by
+//!   cross-validation over the training rows (folds like the split's blocks: each run's
+//!   rows in `2 K` contiguous blocks, block `b` in fold `b mod K`; a static set's by
 //!   pose, so that no frame of a pose predicts another), the process with the fitted
 //!   hyperparameters conditioned on the other folds: its RMS against the physics' on the
 //!   same rows ([`Cv`]).
@@ -192,8 +193,8 @@ pub(crate) fn fit(
 }
 
 /// [`Cv`] of `d` (fitted on the rows `train`, whose inputs are `kept`) on `e` (the
-/// physics' errors): [`CV_FOLDS`] contiguous folds of the training rows (of a static
-/// set, of its poses), each predicted by `d`'s process conditioned on the others.
+/// physics' errors): [`CV_FOLDS`] folds of blocks of each run's training rows (of a
+/// static set, of its poses), each predicted by `d`'s process conditioned on the others.
 fn cross_validated(
     start: &Start,
     d: &Discrepancy,
@@ -212,16 +213,35 @@ fn cross_validated(
         None => unit.iter_mut().enumerate().for_each(|(r, u)| *u = r),
     }
     let units: Vec<usize> = train.iter().map(|&r| unit[r]).collect();
-    let mut distinct = units.clone();
-    distinct.dedup();
-    if distinct.len() < CV_FOLDS {
+    // folds like the split's blocks: each run's training units in 2 K contiguous
+    // blocks, block b in fold b mod K (every fold spans every run, as held-out blocks do)
+    let mut fold = vec![0; train.len()];
+    let mut distinct = 0;
+    for run in &start.rec.runs {
+        let mine: Vec<usize> = (0..train.len())
+            .filter(|&i| run.rows.contains(&train[i]))
+            .collect();
+        let mut ranks: Vec<usize> = mine.iter().map(|&i| units[i]).collect();
+        ranks.dedup();
+        distinct += ranks.len();
+        for &i in &mine {
+            let rank = ranks.partition_point(|&u| u < units[i]);
+            let block = if ranks.len() >= 2 * CV_FOLDS {
+                rank * 2 * CV_FOLDS / ranks.len()
+            } else {
+                rank
+            };
+            fold[i] = block % CV_FOLDS;
+        }
+    }
+    if distinct < CV_FOLDS {
         return None;
     }
-    let fold_of = |u: usize| distinct.partition_point(|&x| x < u) * CV_FOLDS / distinct.len();
+    let fold_of = |i: usize| fold[i];
     let (mut learned, mut physics, mut n) = (0.0, 0.0, 0usize);
     for f in 0..CV_FOLDS {
         let (inside, outside): (Vec<usize>, Vec<usize>) =
-            (0..train.len()).partition(|&i| fold_of(units[i]) == f);
+            (0..train.len()).partition(|&i| fold_of(i) == f);
         let rest = Discrepancy {
             train: outside.iter().map(|&i| d.train[i].clone()).collect(),
             target_mm: outside.iter().map(|&i| d.target_mm[i]).collect(),
