@@ -261,23 +261,28 @@ impl Iterate {
 }
 
 /// Huber's cost of errors `e` (3-vectors) at threshold `c`, and each 3-vector's IRLS
-/// weight `min(1, c / |e_i|)`.
+/// weight `min(1, c / |e_i|)` ([`huber_weight`]).
 pub(crate) fn huber(e: &[f64], c: f64) -> (f64, Vec<f64>) {
     let mut cost = 0.0;
     let w = e
         .chunks(3)
         .map(|v| {
             let d = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if d <= c {
-                cost += d * d;
-                1.0
-            } else {
-                cost += 2.0 * c * d - c * c;
-                c / d
-            }
+            cost += if d <= c { d * d } else { 2.0 * c * d - c * c };
+            huber_weight(v, c)
         })
         .collect();
     (cost, w)
+}
+
+/// The IRLS weight `min(1, c / |v|)` of a 3-vector error `v` at Huber threshold `c`.
+pub(crate) fn huber_weight(v: &[f64], c: f64) -> f64 {
+    let d = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if d <= c {
+        1.0
+    } else {
+        c / d
+    }
 }
 
 /// `bounds` with each parameter held at its value `x` on a side where the model cannot

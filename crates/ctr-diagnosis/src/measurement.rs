@@ -332,14 +332,7 @@ fn normal_equations(
     let mut h = DMatrix::<f64>::zeros(np, np);
     let mut g = DVector::<f64>::zeros(np);
     let c = tips.huber_mm;
-    let weight = |e: &[f64; 3]| {
-        let d = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
-        if d <= c {
-            1.0
-        } else {
-            c / d
-        }
-    };
+    let weight = |e: &[f64; 3]| crate::levenberg::huber_weight(e, c);
     let mut block = DMatrix::<f64>::zeros(3, np);
     let mut add = |block: &DMatrix<f64>, e: &[f64; 3], w: f64| {
         let ev = Vector3::from(*e);
@@ -399,14 +392,7 @@ fn normal_equations(
 /// beside them, each weighted as `m`'s residual weighs its row (module doc).
 fn kabsch(tips: &Tips, m: &Measurement) -> Measurement {
     let c = tips.huber_mm;
-    let weight = |e: &[f64; 3]| {
-        let d = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
-        if d <= c {
-            1.0
-        } else {
-            c / d
-        }
-    };
+    let weight = |e: &[f64; 3]| crate::levenberg::huber_weight(e, c);
     let n = tips.rows.len();
     let mut src = Vec::with_capacity(n);
     let mut wts = Vec::with_capacity(n);
