@@ -104,6 +104,40 @@ pub fn predict_with_margins(
     simulate(model, rec, runs, |_| true, true, 1)
 }
 
+/// [`predict`] with the runs on `threads` workers (0: every core): the same
+/// prediction at any thread count (each run is simulated alone, from its first row).
+///
+/// ```
+/// use ctr_analysis::{model::ModelSpec, simulate::{predict, predict_on}};
+/// use ctr_formats::{Recording, RobotSpec};
+/// let spec = RobotSpec::from_toml_str("[[tube]]\nouter_diameter_mm = 1.2\ninner_diameter_mm = 0.9\n\
+///     length_mm = 260.0\ncurved_length_mm = 0.0\n\
+///     youngs_modulus_mpa = 58000.0\npoisson_ratio = 0.33\n", "r.toml")?;
+/// let rec = Recording::read("run,s1_mm,theta1_deg,x_mm,y_mm,z_mm\na,50,0,0,0,50\nb,60,0,0,0,60\n".as_bytes(), "rec.csv", 1)?;
+/// let m = ModelSpec::from_spec(&spec);
+/// assert_eq!(predict_on(&m, &rec, &[0, 1], 2).unwrap().p, predict(&m, &rec, &[0, 1]).unwrap().p);
+/// # Ok::<(), ctr_formats::Error>(())
+/// ```
+pub fn predict_on(
+    model: &ModelSpec,
+    rec: &Recording,
+    runs: &[usize],
+    threads: usize,
+) -> Result<Prediction, SimError> {
+    simulate(model, rec, runs, |_| true, false, threads)
+}
+
+/// [`predict_with_margins`] with the runs on `threads` workers (0: every core): the
+/// same prediction and margins at any thread count.
+pub fn predict_with_margins_on(
+    model: &ModelSpec,
+    rec: &Recording,
+    runs: &[usize],
+    threads: usize,
+) -> Result<Prediction, SimError> {
+    simulate(model, rec, runs, |_| true, true, threads)
+}
+
 /// Simulates only the rows `rows` (indices into `rec.rows`, ascending) of a
 /// recording: the time effects still run along each whole run that holds one of them
 /// (they remember), but only these rows are solved, each warm-started from the last

@@ -6,12 +6,14 @@
 //! the account held. `scripts/reframe.sh` runs it on a real recording.
 //!
 //! `cargo run --release -p ctr-diagnosis --example reframe -- ROBOT.toml REC.csv
-//!  [--holdout SPLIT] [--draws N] [--seed S] [--fixed] [--threads T]`
+//!  [--holdout SPLIT] [--draws N] [--seed S] [--fixed] [--threads T] [--write DIR]`
 //!
 //! `--fixed` runs issue 40's four transformations (a frame turned 4 deg about
 //! (0.2, 0.3, 0.93) and shifted (3, -2, 1.5) mm; the inner tube's zero moved by 6 deg
 //! and 1.5 mm; the commands 0.3 s ahead; 1 % of the rows jumped 12 mm) before the
-//! seeded draws. Prints a Markdown table; exit status 0 also when a line fails.
+//! seeded draws. `--write DIR` keeps each transformed recording as
+//! `DIR/reframe-<i>.csv` (in the table's order), to diagnose again by hand. Prints a
+//! Markdown table; exit status 0 also when a line fails.
 
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
@@ -84,8 +86,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("| transformation | true change | recovered (error) | its grade | held out / unmodified | other findings | holds |");
     println!("|---|---|---|---|---|---|---|");
     let mut held = 0;
-    for r in &family {
+    let write = value("--write");
+    for (i, r) in family.iter().enumerate() {
         let moved = r.apply(&rec)?;
+        if let Some(dir) = &write {
+            let path = Path::new(dir).join(format!("reframe-{}.csv", i + 1));
+            ctr_diagnosis::synth::write_csv(
+                &moved.recording,
+                std::io::BufWriter::new(std::fs::File::create(&path)?),
+            )?;
+        }
         let d = diagnose(&model, &moved.recording, &opt)?;
         let got = r.recovered(&based, &rec, &d, &moved.recording, &moved.glitch_rows);
         let ok = got.holds(r);

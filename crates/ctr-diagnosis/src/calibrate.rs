@@ -14,7 +14,7 @@ use crate::report::{Diagnosis, Finding};
 use crate::residual::{errors, figures, RowError};
 use crate::start::{sample_period, Start};
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict_with_margins;
+use ctr_analysis::simulate::predict_with_margins_on;
 use ctr_formats::Recording;
 
 /// Start of every value of a clearance table fit, deg.
@@ -51,7 +51,7 @@ pub fn calibrate(
     // the angular columns weighted by their noise: the one residual of the fits (and
     // what says whether the sensor's rotation can be seen at all)
     let framed = effects.contains(&EffectId::Registration);
-    let (weighted, base, seen) = crate::start::simulated(model, rec, framed)?;
+    let (weighted, base, seen) = crate::start::simulated(model, rec, framed, opt.threads)?;
     for &c in effects {
         if let Some(note) = not_applicable(c, model, &weighted) {
             return Err(DiagnoseError::Model(format!("{}: {note}", c.as_str())));
@@ -70,7 +70,7 @@ pub fn calibrate(
     };
     let fitted = best_fit(&problem, &starts(&problem, model, &start))?;
     let m = problem.model(&fitted.x);
-    let pred = predict_with_margins(&m, start.rec, &start.all_runs)
+    let pred = predict_with_margins_on(&m, start.rec, &start.all_runs, start.threads)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))?;
     let e = errors(start.rec, &pred);
     let findings = named_findings(&start, &blocks, &m, &e, &pred.p);

@@ -10,7 +10,7 @@ use crate::search::forward_selection;
 use crate::start::{simulated, Start};
 use crate::verify::settle;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::{predict_with_margins, Prediction};
+use ctr_analysis::simulate::{predict_with_margins_on, Prediction};
 use ctr_formats::Recording;
 
 /// Diagnoses `model` against `rec`: the split, the noise and where the error sits; the
@@ -36,7 +36,7 @@ pub fn diagnose(
     opt: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
     let framed = crate::search::frame::profiled(model, &opt.candidates);
-    let (weighted, base, seen) = simulated(model, rec, framed)?;
+    let (weighted, base, seen) = simulated(model, rec, framed, opt.threads)?;
     let start = Start::new(model, &weighted, base, seen, opt)?;
     let found = forward_selection(&start, &opt.candidates)?;
     let (established, removed, assessed) = settled(&start, &found);
@@ -89,6 +89,6 @@ fn without_alternatives_found(mut found: Found) -> Found {
 
 /// The prediction of `found`'s model along every run, with stability margins.
 pub(crate) fn with_margins(start: &Start, found: &Found) -> Result<Prediction, DiagnoseError> {
-    predict_with_margins(&found.model, start.rec, &start.all_runs)
+    predict_with_margins_on(&found.model, start.rec, &start.all_runs, start.threads)
         .map_err(|e| DiagnoseError::Model(format!("the model cannot be simulated: {e}")))
 }

@@ -10,7 +10,7 @@ use crate::report::{Figures, Finding, Trial};
 use crate::residual::{errors, figures, RowError};
 use crate::start::Start;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::predict;
+use ctr_analysis::simulate::predict_on;
 
 /// The model found so far (see the module docs).
 #[derive(Clone, Debug)]
@@ -118,6 +118,6 @@ impl Found {
 /// `m`'s error vectors on every row of `start`'s recording (`None` when it cannot be
 /// simulated).
 pub(crate) fn simulate(start: &Start, m: &ModelSpec) -> Option<Vec<RowError>> {
-    let pred = predict(m, start.rec, &start.all_runs).ok()?;
+    let pred = predict_on(m, start.rec, &start.all_runs, start.threads).ok()?;
     Some(errors(start.rec, &pred))
 }

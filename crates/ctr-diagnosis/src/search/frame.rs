@@ -19,10 +19,8 @@ use super::round::{self, Passing};
 use crate::candidates::EffectId;
 use crate::fit::MAX_FIT_ITERATIONS;
 use crate::found::{simulate, Found};
-use crate::locate;
-use crate::report::prose::{explain, parameters};
-use crate::report::{Finding, Grade, Trial};
-use crate::residual::{components, figures, tips};
+use crate::report::Trial;
+use crate::residual::{components, figures};
 use crate::scored::Scored;
 use crate::start::Start;
 use ctr_analysis::model::ModelSpec;
@@ -57,19 +55,6 @@ pub(crate) fn enter(start: &Start, found: &mut Found, candidates: &[EffectId]) {
     let Some(e) = simulate(start, &m) else {
         return;
     };
-    let change: Vec<[f64; 3]> = e
-        .iter()
-        .zip(&found.e)
-        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
-        .collect();
-    let all = vec![true; start.rec.rows.len()];
-    let where_ = locate::summary(&locate::locate(
-        start.rec,
-        &change,
-        &all,
-        &tips(start.rec, &e),
-    ));
-    let before = found.fig;
     let others: Vec<EffectId> = candidates.iter().copied().filter(|&o| o != c).collect();
     let instead = round::run(start, found, 0, &others);
     let framed = Passing {
@@ -96,22 +81,8 @@ pub(crate) fn enter(start: &Start, found: &mut Found, candidates: &[EffectId]) {
             return;
         }
     }
-    found.findings.push(Finding {
-        effect: c,
-        grade: Grade::Established,
-        grade_reason: String::new(),
-        explanation: explain(c, &m),
-        where_,
-        parameters: parameters(c, &m),
-        rms_mm_before: before.rms_mm,
-        rms_mm_after: f64::NAN,
-        heldout_rms_mm_before: before.heldout_rms_mm,
-        heldout_rms_mm_after: f64::NAN,
-        heldout_rms_deg: None,
-        empirical_heldout_rms_mm: f64::NAN,
-        ci95: serde_json::Value::Null,
-        equally_explained_by: equally,
-    });
+    let f = super::finding(start, found, c, &m, &e, equally);
+    found.findings.push(f);
     found.take(start, m, e);
     found.cost = fitted.cost;
     found.frame_profiled = true;

@@ -16,12 +16,16 @@
 //! ([`LOOK_AHEAD_ROUNDS`]): two effects may pay where each alone does not; it is kept
 //! only if the model the look-ahead leads to pays over where it began. When nothing
 //! enters, the effects found are revisited ([`backward`]): each must still pay its way
-//! against the model without it, refitted.
+//! against the model without it, refitted. Where candidates are left out then, a second
+//! path starts from that end with all of them added and revisits ([`together`]):
+//! effects that pay only together (which one at a time never adds) are not lost to the
+//! order the first path took, and the criteria choose between the two ends.
 
 pub(crate) mod backward;
 pub(crate) mod frame;
 pub(crate) mod round;
 pub(crate) mod screen;
+pub(crate) mod together;
 
 use crate::candidates::EffectId;
 use crate::error::DiagnoseError;
@@ -84,13 +88,14 @@ pub(crate) fn forward_selection(
                 found = looked_ahead(found, from);
             }
             backward::revisit(start, &mut found, number);
+            let found = together::second_path(start, found, number + 1, candidates);
             return Ok(found);
         }
         if ahead.as_ref().is_some_and(|a| a.1 > LOOK_AHEAD_ROUNDS) {
             let (from, _) = ahead.take().expect("a look-ahead");
             found = looked_ahead(found, from);
             backward::revisit(start, &mut found, number);
-            return Ok(found);
+            return Ok(together::second_path(start, found, number + 1, candidates));
         }
     }
 }
@@ -160,37 +165,8 @@ fn add(start: &Start, found: &mut Found, best: Passing, outcome: Outcome) {
     }
     let effects: Vec<EffectId> = found.effects().into_iter().chain([c]).collect();
     let (m, cost, e) = refit_together(start, &effects, best);
-    // where: the change the effect makes to the predictions
-    let change: Vec<[f64; 3]> = e
-        .iter()
-        .zip(&found.e)
-        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
-        .collect();
-    let all_mask = vec![true; start.rec.rows.len()];
-    let where_ = locate::summary(&locate::locate(
-        start.rec,
-        &change,
-        &all_mask,
-        &tips(start.rec, &e),
-    ));
-    let before = found.fig;
-    found.findings.push(Finding {
-        effect: c,
-        // graded by the checks (`crate::verify::settle`)
-        grade: Grade::Established,
-        grade_reason: String::new(),
-        explanation: explain(c, &m),
-        where_,
-        parameters: parameters(c, &m),
-        rms_mm_before: before.rms_mm,
-        rms_mm_after: f64::NAN,
-        heldout_rms_mm_before: before.heldout_rms_mm,
-        heldout_rms_mm_after: f64::NAN,
-        heldout_rms_deg: None,
-        empirical_heldout_rms_mm: f64::NAN,
-        ci95: serde_json::Value::Null,
-        equally_explained_by: equally,
-    });
+    let f = finding(start, found, c, &m, &e, equally);
+    found.findings.push(f);
     found.take(start, m, e);
     found.cost = cost;
     if let Some(f) = found.findings.last_mut() {
@@ -223,6 +199,48 @@ fn refit_together(
         }
     }
     (best.model, best.cost, best.e)
+}
+
+/// The finding of `c` entering `found` as the model `m` (error vectors `e`): where it
+/// shows (the change it makes to the predictions, located), before its figures after
+/// and its grade (given by the checks, `crate::verify::settle`).
+pub(crate) fn finding(
+    start: &Start,
+    found: &Found,
+    c: EffectId,
+    m: &ModelSpec,
+    e: &[RowError],
+    equally_explained_by: Vec<Alternative>,
+) -> Finding {
+    let change: Vec<[f64; 3]> = e
+        .iter()
+        .zip(&found.e)
+        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+        .collect();
+    let all_mask = vec![true; start.rec.rows.len()];
+    let where_ = locate::summary(&locate::locate(
+        start.rec,
+        &change,
+        &all_mask,
+        &tips(start.rec, e),
+    ));
+    let before = found.fig;
+    Finding {
+        effect: c,
+        grade: Grade::Established,
+        grade_reason: String::new(),
+        explanation: explain(c, m),
+        where_,
+        parameters: parameters(c, m),
+        rms_mm_before: before.rms_mm,
+        rms_mm_after: f64::NAN,
+        heldout_rms_mm_before: before.heldout_rms_mm,
+        heldout_rms_mm_after: f64::NAN,
+        heldout_rms_deg: None,
+        empirical_heldout_rms_mm: f64::NAN,
+        ci95: serde_json::Value::Null,
+        equally_explained_by,
+    }
 }
 
 /// The candidates of `passing` other than `best` that explain the residual as well:

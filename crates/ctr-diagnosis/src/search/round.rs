@@ -156,7 +156,7 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
 
 /// The candidates left to try in `round` (neither in the user's model nor found), and
 /// the trials of those that do not apply here (listed in round 1 only).
-fn left(
+pub(crate) fn left(
     start: &Start,
     found: &Found,
     round: usize,

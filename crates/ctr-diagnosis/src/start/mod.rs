@@ -20,7 +20,7 @@ use crate::residual::{errors, figures, positions, RowError};
 use crate::start::noise::{estimate_noise, median};
 use crate::start::split::split;
 use ctr_analysis::model::ModelSpec;
-use ctr_analysis::simulate::{predict, predict_with_margins, Prediction};
+use ctr_analysis::simulate::{predict, predict_with_margins_on, Prediction};
 use ctr_formats::Recording;
 use nalgebra::Rotation3;
 use std::borrow::Cow;
@@ -67,15 +67,18 @@ pub(crate) struct Start<'a> {
 /// `framed`, the tracker's frame is fitted first (least squares of the tip positions,
 /// closed form: [`crate::measurement`]) and the weights (and the noise, [`Start::new`])
 /// are taken on the model's error in it, the third value: the same whatever frame the
-/// tracker was registered in.
+/// tracker was registered in. The runs are simulated on `threads` workers (0: every
+/// core; the same prediction at any count).
 pub(crate) fn simulated<'a>(
     model: &ModelSpec,
     rec: &'a Recording,
     framed: bool,
+    threads: usize,
 ) -> Result<(Cow<'a, Recording>, Prediction, Option<Seen>), DiagnoseError> {
     let all_runs: Vec<usize> = (0..rec.runs.len()).collect();
     let cannot = |e| DiagnoseError::Model(format!("the model cannot be simulated: {e}"));
-    let base = predict_with_margins(model, rec, &all_runs).map_err(cannot)?;
+    let threads = ctr_formats::parallel::resolve_threads(threads);
+    let base = predict_with_margins_on(model, rec, &all_runs, threads).map_err(cannot)?;
     let seen = if framed {
         in_its_frame(model, rec, &base)
     } else {
