@@ -79,7 +79,7 @@ pub struct Prediction {
 /// # Ok::<(), ctr_formats::Error>(())
 /// ```
 pub fn predict(model: &ModelSpec, rec: &Recording, runs: &[usize]) -> Result<Prediction, SimError> {
-    simulate(model, rec, runs, |_| true, false, 1)
+    predict_on(model, rec, runs, 1)
 }
 
 /// [`predict`] with every simulated row's stability margin ([`Prediction::margin`]),
@@ -101,10 +101,10 @@ pub fn predict_with_margins(
     rec: &Recording,
     runs: &[usize],
 ) -> Result<Prediction, SimError> {
-    simulate(model, rec, runs, |_| true, true, 1)
+    predict_with_margins_on(model, rec, runs, 1)
 }
 
-/// [`predict`] with the runs on `threads` workers (0: every core): the same
+/// [`predict`] with the runs on `threads` workers (at least one): the same
 /// prediction at any thread count (each run is simulated alone, from its first row).
 ///
 /// ```
@@ -127,7 +127,7 @@ pub fn predict_on(
     simulate(model, rec, runs, |_| true, false, threads)
 }
 
-/// [`predict_with_margins`] with the runs on `threads` workers (0: every core): the
+/// [`predict_with_margins`] with the runs on `threads` workers (at least one): the
 /// same prediction and margins at any thread count.
 pub fn predict_with_margins_on(
     model: &ModelSpec,
@@ -165,7 +165,7 @@ pub fn predict_rows(
     predict_rows_on(model, rec, rows, 1)
 }
 
-/// [`predict_rows`] with the runs on `threads` workers (0: every core): the same
+/// [`predict_rows`] with the runs on `threads` workers (at least one): the same
 /// prediction at any thread count.
 ///
 /// ```

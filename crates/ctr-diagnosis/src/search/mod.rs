@@ -87,17 +87,21 @@ pub(crate) fn forward_selection(
             if let Some((from, _)) = ahead.take() {
                 found = looked_ahead(found, from);
             }
-            backward::revisit(start, &mut found, number);
-            let found = together::second_path(start, found, number + 1, candidates);
-            return Ok(found);
+            return Ok(ended(start, found, number, candidates));
         }
         if ahead.as_ref().is_some_and(|a| a.1 > LOOK_AHEAD_ROUNDS) {
             let (from, _) = ahead.take().expect("a look-ahead");
             found = looked_ahead(found, from);
-            backward::revisit(start, &mut found, number);
-            return Ok(together::second_path(start, found, number + 1, candidates));
+            return Ok(ended(start, found, number, candidates));
         }
     }
+}
+
+/// The search's end from `found`, where no candidate enters after round `number`: the
+/// effects found revisited ([`backward`]), then the second path ([`together`]).
+fn ended(start: &Start, mut found: Found, number: usize, candidates: &[EffectId]) -> Found {
+    backward::revisit(start, &mut found, number);
+    together::second_path(start, found, number + 1, candidates)
 }
 
 /// Rounds a look-ahead may add effects that do not pay alone before the model it
@@ -202,8 +206,9 @@ fn refit_together(
 }
 
 /// The finding of `c` entering `found` as the model `m` (error vectors `e`): where it
-/// shows (the change it makes to the predictions, located), before its figures after
-/// and its grade (given by the checks, `crate::verify::settle`).
+/// shows (the change it makes to the predictions, located) and `found`'s figures as
+/// its figures before; its figures after are left to the caller (`NaN`), its grade to
+/// the checks (`crate::verify::settle`).
 pub(crate) fn finding(
     start: &Start,
     found: &Found,

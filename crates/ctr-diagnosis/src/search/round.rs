@@ -99,15 +99,7 @@ pub(crate) fn run(start: &Start, found: &Found, round: usize, candidates: &[Effe
     let n = start.user.robot.n_tubes();
     // the screen: every candidate fitted from its starts on a sample of the fit rows
     // with the effects found so far held, side by side on the pool
-    let held = found.effects();
-    let screen = Screen::new(
-        &found.model,
-        &held,
-        start.rec,
-        &start.fit_rows,
-        start.huber_mm(),
-        start.threads,
-    );
+    let screen = Screen::beside(start, found);
     let screened = screen.fit_all(&todo, n, sample_period(start.rec), start.threads);
     let ranked = screen.rank(&todo, &screened, start.threads);
     // which are fitted in full depends on the screen alone: they are fitted side by

@@ -28,8 +28,10 @@
 
 use crate::candidates::EffectId;
 use crate::fit::{Problem, MAX_FIT_ITERATIONS};
+use crate::found::Found;
 use crate::levenberg::{projected_gain, Fitted};
 use crate::residual::components;
+use crate::start::Start;
 use ctr_analysis::model::ModelSpec;
 use ctr_formats::Recording;
 use nalgebra::{DMatrix, DVector};
@@ -119,6 +121,19 @@ impl<'a> Screen<'a> {
             screen.held_jacobian = p.predictions(&x).and_then(|p0| p.jacobian(&x, &p0));
         }
         screen
+    }
+
+    /// The screen of a search round from `found`: candidates added to its model, the
+    /// effects it holds held, on a sample of `start`'s fit rows.
+    pub(crate) fn beside(start: &Start<'a>, found: &Found) -> Self {
+        Screen::new(
+            &found.model,
+            &found.effects(),
+            start.rec,
+            &start.fit_rows,
+            start.huber_mm(),
+            start.threads,
+        )
     }
 
     fn problem(&self, blocks: Vec<EffectId>) -> Problem<'a> {

@@ -98,14 +98,7 @@ fn all_in(start: &Start, found: &Found, round: usize, candidates: &[EffectId]) -
     }
     let n = start.user.robot.n_tubes();
     let held = found.effects();
-    let screen = Screen::new(
-        &found.model,
-        &held,
-        start.rec,
-        &start.fit_rows,
-        start.huber_mm(),
-        start.threads,
-    );
+    let screen = Screen::beside(start, found);
     let screened = screen.fit_all(&todo, n, sample_period(start.rec), start.threads);
     let mut x0 = found.parameters_in(&found.model);
     for (c, s) in todo.iter().zip(&screened) {
