@@ -13,8 +13,9 @@
 //!   pushed as far as the fit allows, its interval cut by the bound). This is physics
 //!   the data show;
 //! - **predictive**: it fails a check (or no interval excludes "not there"), but the
-//!   fitted model without it does worse on the held-out rows beyond chance
-//!   ([`crate::paired::clearly_lower`]): it helps prediction, its form is not
+//!   fitted model without it does worse on the held-out rows by at least
+//!   [`crate::MIN_HELDOUT_GAIN`], the gain the search asks of every effect
+//!   ([`crate::predictive`]): it helps prediction, its form is not
 //!   established, and it may stand in for something outside the vocabulary.
 //!
 //! A finding that fails a check and does not help prediction is taken out (a trial
@@ -106,7 +107,7 @@ pub(crate) fn by_intervals(findings: &mut [Finding]) {
 
 /// How close to a bound of its fit a parameter counts as on it, in its natural steps
 /// ([`Problem::scale`]): the QP's interior-point steps stop just inside a bound.
-const ON_BOUND_STEPS: f64 = 1e-3;
+pub(crate) const ON_BOUND_STEPS: f64 = 1e-3;
 
 /// The effects of `problem` with a parameter at `x` on a bound of its fit other than
 /// the value that means "not there" (0 in every fitted parameter: an offset, a play, a

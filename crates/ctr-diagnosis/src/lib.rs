@@ -55,7 +55,8 @@
 //! 5. **Predictive** (`predictive`): the search's model is the best predictive model. A
 //!    finding the checks took out stays in it, graded **predictive** ([`Grade`]), where
 //!    the fitted model without it does worse on the held-out rows by at least
-//!    [`MIN_HELDOUT_GAIN`] and beyond chance (`paired`); the others are dropped. A
+//!    [`MIN_HELDOUT_GAIN`], the gain the search asks of every effect to enter and to
+//!    keep its place; the others are dropped. A
 //!    predictive finding never makes an established one.
 //! 6. **Finish** (`finish`):
 //!    - the **verdict** (`verdict`): `explained` when the held-out residual (tracker

@@ -5,15 +5,19 @@
 //! fits a little better when it may vary with something, that throws away physics that
 //! predicts. So the model the search ended with, every finding in it, is the predictive
 //! model; the findings the checks took out stay in it, graded **predictive**, where
-//! they help prediction: the fitted model without one (the others as fitted) does worse
-//! on the held-out rows by at least [`MIN_HELDOUT_GAIN`] and beyond chance
-//! ([`clearly_lower`]). Those that do not are dropped and the rest refitted together.
-//! The established findings are exactly those the checks keep: a predictive finding
-//! never makes one.
+//! they help prediction: the fitted model without one (the others as fitted, or
+//! refitted) does worse on the held-out rows by at least [`MIN_HELDOUT_GAIN`]. That is
+//! the gain the search asks of every effect to enter and to keep its place in the
+//! revisit, where the information criterion too has accepted it; one rule, so that a
+//! finding the search kept is not dropped here on a stricter test whose verdict a
+//! re-framing of the data can flip (a paired test at its threshold: on the real
+//! recording a friction 16 % better held out fell on either side of it when only
+//! the rows' rounding changed). Those that do not help are dropped and the rest
+//! refitted together. The established findings are exactly those the checks keep: a
+//! predictive finding never makes one.
 
 use crate::candidates::EffectId;
 use crate::found::{simulate, Found};
-use crate::paired::clearly_lower;
 use crate::report::Grade;
 use crate::report::REMOVED;
 use crate::scored::Scored;
@@ -82,8 +86,7 @@ pub(crate) fn readmit(
 /// How a removed finding helps the predictive model.
 #[derive(Clone, Copy, Debug)]
 enum Help {
-    /// Without it the held-out rows do worse by at least [`MIN_HELDOUT_GAIN`] and
-    /// beyond chance.
+    /// Without it the held-out rows do worse by at least [`MIN_HELDOUT_GAIN`].
     Predicts,
     /// Without it the model (the others as fitted) cannot be simulated.
     HoldsUp,
@@ -95,7 +98,7 @@ impl Help {
         match self {
             Help::Predicts => {
                 "it helps prediction (without it the fitted model does worse on the \
-                 held-out rows, beyond chance)"
+                 held-out rows by at least the gain the search asks of every effect)"
             }
             Help::HoldsUp => {
                 "it is kept for prediction (without it the other findings, as fitted, \
@@ -119,7 +122,6 @@ fn helps(start: &Start, found: &Found, c: EffectId) -> Option<Help> {
     let scored = Scored::from(&found.e, &start.held);
     let worse_without = |e: &[crate::residual::RowError]| {
         scored.score(start.rec, &found.e) < (1.0 - MIN_HELDOUT_GAIN) * scored.score(start.rec, e)
-            && clearly_lower(&found.e, e, scored.mask())
     };
     if worse_without(&e) {
         return Some(Help::Predicts);
