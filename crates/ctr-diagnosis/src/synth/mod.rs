@@ -578,7 +578,7 @@ fn world_tips(
     let commanded_q: Vec<Vec<f64>> = recording.rows.iter().map(|r| r.q.clone()).collect();
     for row in &mut recording.rows {
         for u in &spec.unmodelled {
-            u.actuate(&mut row.q);
+            u.actuate(&mut row.q, row.t_s);
         }
     }
     let mut pred = predict(world, recording, &all)?;

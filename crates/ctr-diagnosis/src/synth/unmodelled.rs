@@ -32,6 +32,16 @@ pub enum Unmodelled {
         /// Its phase, degrees.
         phase_deg: f64,
     },
+    /// A coupling that slips once: from `at_s` on, the actual rotation of `tube` is the
+    /// commanded plus `jump_deg` (a set screw that gave, a belt that skipped a tooth).
+    RotationSlip {
+        /// The tube, 0-based.
+        tube: usize,
+        /// When it slips, s (the recording's `t_s`).
+        at_s: f64,
+        /// How far the rotation jumps then, degrees.
+        jump_deg: f64,
+    },
     /// A tracker whose frame creeps: measured += `t_s` x `velocity_mm_s`.
     TrackerDrift {
         /// Creep of the tracker's frame, mm/s per axis.
@@ -63,8 +73,8 @@ pub const WANDER_COMPONENTS: usize = 6;
 pub const WANDER_PERIOD_SPAN: f64 = 4.0;
 
 impl Unmodelled {
-    /// The actual joints (file order and units) for the commanded `q`.
-    pub(crate) fn actuate(&self, q: &mut [f64]) {
+    /// The actual joints (file order and units) for the commanded `q` at time `t_s`.
+    pub(crate) fn actuate(&self, q: &mut [f64], t_s: f64) {
         match *self {
             Unmodelled::FeedGain { tube, gain } => q[2 * tube] *= gain,
             Unmodelled::RotationGain { tube, gain } => q[2 * tube + 1] *= gain,
@@ -75,6 +85,15 @@ impl Unmodelled {
             } => {
                 let theta = q[2 * tube + 1];
                 q[2 * tube + 1] = theta + amplitude_deg * (theta + phase_deg).to_radians().sin();
+            }
+            Unmodelled::RotationSlip {
+                tube,
+                at_s,
+                jump_deg,
+            } => {
+                if t_s >= at_s {
+                    q[2 * tube + 1] += jump_deg;
+                }
             }
             Unmodelled::TrackerDrift { .. }
             | Unmodelled::TrackerScale { .. }

@@ -437,6 +437,19 @@ impl Assessment {
         })
     }
 
+    /// Where parameter `j`'s nominal sits on a bound of its fit (a play, a deflection,
+    /// a lag: at least 0), whether its fitted value is on that bound too (within
+    /// [`ON_BOUND_STEPS`](crate::grade::ON_BOUND_STEPS) of its natural step); `None`
+    /// where the nominal is inside the bounds.
+    pub(crate) fn on_edge(&self, j: usize) -> Option<bool> {
+        let within = crate::grade::ON_BOUND_STEPS * self.steps[j];
+        let (lo, hi) = self.bounds[j];
+        [lo, hi]
+            .into_iter()
+            .find(|b| b.is_finite() && (self.nominal[j] - b).abs() <= within)
+            .map(|b| (self.x[j] - b).abs() <= within)
+    }
+
     /// Whether parameter `j`, at `bound` of its fit at `x`, can leave it by more than
     /// `within` along a direction the data do not see while every parameter stays within
     /// the fit's bounds: then its place on the bound is the fit's arbitrary choice, not

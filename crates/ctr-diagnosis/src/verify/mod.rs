@@ -52,7 +52,11 @@
 //!    cluster-robust variances, so a structured residual widens it) must put the
 //!    user's nominal values outside the finding's joint 95 % region: the Wald
 //!    statistic `d^T Sigma^+ d` of its parameters' distance `d` from the nominal
-//!    exceeds the chi-square quantile of their rank (`identified::wald`). A finding
+//!    exceeds the chi-square quantile of their rank (`identified::wald`). Where a
+//!    parameter's nominal sits on a bound of the fit (a play, a deflection: at least
+//!    0) and it is fitted there, it is not counted: the test is conditional on where
+//!    such parameters are, so a bound cannot dilute what the data do move (the report
+//!    says so). A finding
 //!    whose values the data cannot tell from the nominal is no finding, however much
 //!    it lowered the cost on the way.
 //!
@@ -143,12 +147,7 @@ pub(crate) enum Failure {
         why: String,
     },
     /// The data cannot tell its parameters from the nominal.
-    NotIdentified {
-        /// The Wald statistic of its parameters against the nominal.
-        statistic: f64,
-        /// The 95 % threshold it had to exceed.
-        threshold: f64,
-    },
+    NotIdentified(identified::Wald),
 }
 
 /// A finding's checks.
@@ -455,14 +454,23 @@ fn failure_words(failure: &Failure) -> String {
                                  parameters' 95 % intervals holds the value that means it is \
                                  not there: the data do not rule its absence out"
             .into(),
-        Failure::NotIdentified {
-            statistic,
-            threshold,
-        } => format!(
-            "with every finding fitted together, its parameters are not told from the \
-             nominal (Wald statistic {statistic:.2} against the 95 % threshold \
-             {threshold:.2}: the nominal lies inside their 95 % region)"
-        ),
+        Failure::NotIdentified(w) => {
+            let edge = if w.at_edge == 0 {
+                String::new()
+            } else {
+                format!(
+                    "; {} of its parameters fitted on the bound where the nominal sits (a \
+                     play or a deflection of 0) not counted, the test conditional on them",
+                    w.at_edge
+                )
+            };
+            format!(
+                "with every finding fitted together, its parameters are not told from the \
+                 nominal (Wald statistic {:.2} against the 95 % threshold {:.2}{edge}: \
+                 the nominal lies inside their 95 % region)",
+                w.statistic, w.threshold
+            )
+        }
     }
 }
 
@@ -545,8 +553,8 @@ mod tests {
         assert!(
             matches!(
                 failures.as_slice(),
-                [(EffectId::Latency, Failure::NotIdentified { statistic, threshold })]
-                    if statistic < threshold
+                [(EffectId::Latency, Failure::NotIdentified(w))]
+                    if w.statistic < w.threshold
             ),
             "{failures:?}"
         );
