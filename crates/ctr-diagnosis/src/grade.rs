@@ -27,7 +27,7 @@ use crate::candidates::EffectId;
 use crate::fit::Problem;
 use crate::report::numbers::intervals;
 use crate::report::{Finding, Grade};
-use crate::uncertainty::Assessment;
+use crate::uncertainty::{Assessment, ON_BOUND_STEPS};
 use ctr_analysis::model::ModelSpec;
 
 /// The value of a parameter of an effect's table in the robot file (its key) that means
@@ -104,10 +104,6 @@ pub(crate) fn by_intervals(findings: &mut [Finding]) {
             .into();
     }
 }
-
-/// How close to a bound of its fit a parameter counts as on it, in its natural steps
-/// ([`Problem::scale`]): the QP's interior-point steps stop just inside a bound.
-pub(crate) const ON_BOUND_STEPS: f64 = 1e-3;
 
 /// The effects of `problem` with a parameter at `x` on a bound of its fit other than
 /// the value that means "not there" (0 in every fitted parameter: an offset, a play, a

@@ -129,6 +129,11 @@ impl Combination {
     }
 }
 
+/// How close to a bound of its fit a parameter counts as on it, in its natural steps
+/// ([`Problem::scale`]): the QP's interior-point steps stop
+/// just inside a bound.
+pub(crate) const ON_BOUND_STEPS: f64 = 1e-3;
+
 /// The uncertainty of a fit: covariance, intervals, what is not identified.
 #[derive(Clone, Debug)]
 pub(crate) struct Assessment {
@@ -439,10 +444,10 @@ impl Assessment {
 
     /// Where parameter `j`'s nominal sits on a bound of its fit (a play, a deflection,
     /// a lag: at least 0), whether its fitted value is on that bound too (within
-    /// [`ON_BOUND_STEPS`](crate::grade::ON_BOUND_STEPS) of its natural step); `None`
+    /// [`ON_BOUND_STEPS`] of its natural step); `None`
     /// where the nominal is inside the bounds.
     pub(crate) fn on_edge(&self, j: usize) -> Option<bool> {
-        let within = crate::grade::ON_BOUND_STEPS * self.steps[j];
+        let within = ON_BOUND_STEPS * self.steps[j];
         let (lo, hi) = self.bounds[j];
         [lo, hi]
             .into_iter()
