@@ -4,9 +4,11 @@
 //! physics (the false-finding rate).
 //!
 //! `cargo run --release -p ctr-diagnosis --example grade_families -- [--draws N]
-//!  [--seed S] [--threads T] [--why]`
+//!  [--seed S] [--threads T] [--why] [--write DIR]`
 //!
-//! `--why` prints every finding's grade and its reason on standard error.
+//! `--why` prints every finding's grade and its reason on standard error; `--write DIR`
+//! keeps each draw's recording as `DIR/<family>-<draw>.csv` (`friction-3.csv`,
+//! `tracker-3.csv`), to diagnose again by hand with the shared robot file.
 //!
 //! Two families of `--draws` (default 20) draws each, on the shared two-tube robot
 //! (`nitinol2`), default split, tracker noise 0.2 mm per axis:
@@ -23,7 +25,7 @@
 use ctr_analysis::model::ModelSpec;
 use ctr_analysis::rng::Rng;
 use ctr_core::Model;
-use ctr_diagnosis::synth::{generate, Ranges, SynthSpec, Unmodelled};
+use ctr_diagnosis::synth::{generate, write_csv, Ranges, SynthSpec, Unmodelled};
 use ctr_diagnosis::{diagnose, Grade, Options, Report};
 use ctr_formats::{Effects, Friction, Latency, RobotSpec};
 use std::path::PathBuf;
@@ -131,6 +133,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 synth.unmodelled.push(slip);
             }
             let gen = generate(&world, &ranges, &synth)?;
+            if let Some(dir) = value("--write") {
+                let family_word = family.split(' ').next().unwrap_or("draw");
+                let path = PathBuf::from(dir).join(format!("{family_word}-{d}.csv"));
+                write_csv(&gen.recording, std::fs::File::create(&path)?)?;
+            }
             let r = diagnose(&user, &gen.recording, &opt)?.report;
             let est = names(&r, Grade::Established);
             if args.iter().any(|a| a == "--why") {

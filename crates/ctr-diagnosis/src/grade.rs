@@ -58,6 +58,10 @@ pub fn absent_value(key: &str) -> Option<f64> {
     }
 }
 
+/// How near its "not there" value an interval's end counts as on it, relative to the
+/// interval's width: rounding in an end cut at the bound where the absence sits.
+const END_AT_ABSENCE: f64 = 1e-9;
+
 /// Whether at least one of `finding`'s parameters has a 95 % interval that excludes its
 /// "not there" value, or one of the combinations of its own parameters the data
 /// identify (`ci95.identified`, with its `not_there` value: a ratio of stiffness
@@ -69,8 +73,18 @@ pub(crate) fn present_beyond_doubt(finding: &Finding) -> bool {
     if parameters.is_empty() {
         return true;
     }
+    // an end within rounding of "not there" is that value: the interval cut at the
+    // bound where the absence sits (a deflection's interval ending at 4.7e-15 deg,
+    // printed as 0) holds it
     let excludes = |lo: Option<f64>, hi: Option<f64>, absent: f64| {
-        lo.is_some_and(|lo| lo > absent) || hi.is_some_and(|hi| hi < absent)
+        let at = |end: f64| {
+            let width = match (lo, hi) {
+                (Some(lo), Some(hi)) => hi - lo,
+                _ => end.abs(),
+            };
+            (end - absent).abs() <= END_AT_ABSENCE * width.abs().max(absent.abs())
+        };
+        lo.is_some_and(|lo| lo > absent && !at(lo)) || hi.is_some_and(|hi| hi < absent && !at(hi))
     };
     let own = parameters.iter().any(|p| {
         let key = p.name.split('[').next().unwrap_or("");
@@ -204,6 +218,21 @@ mod tests {
             ci95,
             equally_explained_by: Vec::new(),
         }
+    }
+
+    #[test]
+    fn an_end_cut_at_the_absence_by_rounding_holds_it() {
+        // a clearance whose deflection interval ends at 4.7e-15 deg (cut at its bound
+        // 0, printed as 0) does not exclude "not there"; one ending at 0.05 deg does
+        let clearance = |lo: f64| Finding {
+            effect: EffectId::Clearance,
+            ..finding(
+                json!({"max_deflection_deg": [0.71], "peak_deg": [348.0]}),
+                json!({"max_deflection_deg": [[lo, 0.959]], "peak_deg": [[317.4, 358.8]]}),
+            )
+        };
+        assert!(!present_beyond_doubt(&clearance(4.66e-15)));
+        assert!(present_beyond_doubt(&clearance(0.05)));
     }
 
     #[test]

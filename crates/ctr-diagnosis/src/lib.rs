@@ -45,9 +45,9 @@
 //!    without it, refitted (`search::backward`), and those that no longer pay leave.
 //! 4. **Verify** (`verify`): a finding is physics only when the data say so. With the
 //!    other findings in place each must beat a generic empirical correction of as many
-//!    parameters on the held-out rows (`empirical`; where the model leaves only noise,
-//!    also one in the stretches and shears of the tip position, unless the effect is
-//!    itself a map of the tip position), fit better constant than proportional to a
+//!    parameters on the held-out rows (`empirical`, with the stretches and shears of
+//!    the tip position among its terms, unless the effect is itself a map of the tip
+//!    position), fit better constant than proportional to a
 //!    feature of the rows (a feed offset where the feed gain is wrong fails), and be
 //!    identified (its joint 95 % region excludes the nominal). Findings that fail are
 //!    taken out and the rest refitted, then revisited as the search revisits, until all

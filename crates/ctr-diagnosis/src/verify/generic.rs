@@ -28,87 +28,80 @@ impl Context<'_> {
     ) -> (Figures, Option<Failure>) {
         let k = c.n_params(m.robot.n_tubes());
         let h = self.figures(e).heldout_score();
+        // the yardstick is generic in the joints and time and, always, linear in the
+        // modelled tip position (the stretches and shears a tracker's scale or
+        // calibration error makes, which no effect of the vocabulary is and many can
+        // mimic: a precurvature, a clearance, a sensor offset along the tip), unless
+        // `c`'s own form is such a map (a registration): it is not measured against
+        // itself
+        let tip = self
+            .directions(m, frame, c)
+            .as_ref()
+            .is_some_and(|d| !affine_in_tip(d, &frame.tips(self.rec, e)));
+        let fields = |err: &[RowError]| -> Vec<Field> {
+            let mut fields = self.yardstick.clone();
+            if tip {
+                fields.extend(non_rigid(&frame.tips(self.rec, err), &self.fit));
+            }
+            fields
+        };
         // both sides get the generic term that what `M` leaves asks for (size by
         // cross-validation), the side without `c` k terms more: `c` must explain
         // something a generic term cannot, not just something else that is left
-        let size = if at_noise { 0 } else { self.generic_size(e) };
+        let with_fields = fields(e);
+        let size = if at_noise {
+            0
+        } else {
+            self.generic_size(&with_fields, e)
+        };
         let h_with = if size == 0 {
             h
         } else {
-            self.empirical_heldout(e, size).heldout_score()
+            self.figures(&self.generic_left(&with_fields, e, size))
+                .heldout_score()
         };
-        // where `M` leaves only noise, the correction in `c`'s place may also be linear
-        // in the tip position (what a tracker's scale or calibration error makes, and
-        // what an effect that reaches the noise through the tip's pose, a sensor offset
-        // along the tip, can mimic), unless `c`'s own form is such a map (a
-        // registration): it is not measured against itself
-        let directions = if at_noise {
-            self.directions(m, frame, c)
-        } else {
-            None
-        };
-        let tip = directions
-            .as_ref()
-            .is_some_and(|d| !affine_in_tip(d, &frame.tips(self.rec, e)));
-        let (fig_emp, left_emp) = if tip {
-            let left = self.empirical_with_tip(e_without, &frame.tips(self.rec, e_without), k);
-            (self.figures(&left), Some(left))
-        } else {
-            (self.empirical_heldout(e_without, size + k), None)
-        };
+        let left_emp = self.generic_left(&fields(e_without), e_without, size + k);
+        let fig_emp = self.figures(&left_emp);
         let h_emp = fig_emp.heldout_score();
         // where the generic correction too leaves only noise, both explain the data and
         // clearly also means beyond chance
         let both_at_noise = h_emp <= NOISE_TOLERANCE * self.noise_rms;
         let beaten = h_with >= (1.0 - MIN_GAIN_OVER_EMPIRICAL) * h_emp
-            || (both_at_noise
-                && left_emp
-                    .as_ref()
-                    .is_some_and(|l| !clearly_lower(e, l, self.held)));
+            || (tip && both_at_noise && !clearly_lower(e, &left_emp, self.held));
         let failure = (self.checks.beats_generic && (!at_noise || tip) && beaten)
             .then_some(Failure::Empirical { fig: fig_emp, tip });
         (fig_emp, failure)
     }
 
-    /// The figures of `e` after the best `k`-term generic correction in the joints and
-    /// time fitted to its positions (the angular errors stay).
-    fn empirical_heldout(&self, e_row: &[RowError], k: usize) -> Figures {
+    /// What `e` leaves after the best `k` terms of `fields` fitted to its positions on
+    /// the fit rows, every row (the angular errors stay).
+    fn generic_left(&self, fields: &[Field], e_row: &[RowError], k: usize) -> Vec<RowError> {
         let e = &positions(e_row);
         let w = empirical::weights(e, &self.fit, self.huber_mm);
-        let terms = empirical::pursue(&self.yardstick, e, &w, k);
-        let left = empirical::subtract(&self.yardstick, &terms, e);
-        self.figures(&with_angles(&left, e_row))
+        let terms = empirical::pursue(fields, e, &w, k);
+        with_angles(&empirical::subtract(fields, &terms, e), e_row)
     }
 
-    /// What `e` leaves after the best `k`-term generic correction in the joints, time
-    /// and the non-rigid linear maps of the modelled tip position (`tips`), every row.
-    fn empirical_with_tip(&self, e_row: &[RowError], tips: &[[f64; 3]], k: usize) -> Vec<RowError> {
-        let e = &positions(e_row);
-        let mut fields = self.yardstick.clone();
-        fields.extend(non_rigid(tips, &self.fit));
-        let w = empirical::weights(e, &self.fit, self.huber_mm);
-        let terms = empirical::pursue(&fields, e, &w, k);
-        with_angles(&empirical::subtract(&fields, &terms, e), e_row)
-    }
-
-    /// The size of the generic correction (joints and time) that cross-validation on
-    /// the fit rows gives `e`: what is left that a generic term takes, whatever it is.
-    fn generic_size(&self, e_row: &[RowError]) -> usize {
+    /// The size of the generic correction (of `fields`) that cross-validation on the
+    /// fit rows gives `e`: what is left that a generic term takes, whatever it is.
+    fn generic_size(&self, fields: &[Field], e_row: &[RowError]) -> usize {
         let e = &positions(e_row);
         let w = empirical::weights(e, &self.fit, self.huber_mm);
-        hybrid::choose_size(&self.yardstick, e, &w, self.threads)
+        hybrid::choose_size(fields, e, &w, self.threads)
     }
 }
 
 /// The linear maps of the tip position `p` that no rigid motion makes, as fields over
 /// the rows (each coordinate centred and scaled on the `fit` rows, `u`): the three
-/// stretches along an axis (`u_a` on axis `a`) and the three symmetric shears (`u_b` on
-/// `a` and `u_a` on `b`). A tracker's scale or calibration error is a sum of them; a
+/// stretches along an axis (`u_a` on axis `a`), the same stretch on every axis (a
+/// tracker's scale: one term, where the three stretches would take three) and the three
+/// symmetric shears (`u_b` on `a` and `u_a` on `b`). A tracker's scale or calibration
+/// error is a sum of them; a
 /// rotation (antisymmetric) or a translation, a registration's, is not: that belongs to
 /// the vocabulary.
 fn non_rigid(p: &[[f64; 3]], fit: &[bool]) -> Vec<Field> {
     let n = fit.iter().filter(|f| **f).count().max(1) as f64;
-    let u: Vec<[f64; 3]> = {
+    let (u, spread): (Vec<[f64; 3]>, [f64; 3]) = {
         let mut centre = [0.0; 3];
         let mut spread = [0.0; 3];
         for a in 0..3 {
@@ -128,9 +121,11 @@ fn non_rigid(p: &[[f64; 3]], fit: &[bool]) -> Vec<Field> {
                 / n;
             spread[a] = if var > 0.0 { var.sqrt() } else { 1.0 };
         }
-        p.iter()
+        let u = p
+            .iter()
             .map(|v| [0, 1, 2].map(|a| (v[a] - centre[a]) / spread[a]))
-            .collect()
+            .collect();
+        (u, spread)
     };
     let mut fields: Vec<Field> = (0..3)
         .map(|a| {
@@ -143,6 +138,14 @@ fn non_rigid(p: &[[f64; 3]], fit: &[bool]) -> Vec<Field> {
                 .collect()
         })
         .collect();
+    // the same stretch on every axis (a tracker's scale, one number) as one field:
+    // the centred tip position over its RMS spread
+    let overall = (spread.iter().map(|s| s * s).sum::<f64>() / 3.0).sqrt();
+    fields.push(
+        u.iter()
+            .map(|v| [0, 1, 2].map(|a| v[a] * spread[a] / overall))
+            .collect(),
+    );
     for (a, b) in [(0, 1), (0, 2), (1, 2)] {
         fields.push(
             u.iter()
@@ -233,6 +236,13 @@ mod tests {
             })
             .collect();
         assert!(left_share(&fields, &scale, 3) < 1e-20);
+        // the same scale on every axis (a tracker's scale about W's origin: about the
+        // centre, plus a translation the frame takes): one term
+        let iso: Vec<[f64; 3]> = p
+            .iter()
+            .map(|v| [0, 1, 2].map(|a| 0.015 * (v[a] - mean[a])))
+            .collect();
+        assert!(left_share(&fields, &iso, 1) < 1e-20);
         // a rotation of 2 deg about z (a registration's): half of it stays, whatever
         // the terms
         let w = 2f64.to_radians();

@@ -14,15 +14,15 @@
 //!    `M` with `K` terms must do clearly better on the held-out rows:
 //!    `h_K < (1 - MIN_GAIN_OVER_EMPIRICAL) h_emp`. So `c` must explain something a
 //!    generic term cannot, and something else that is left (a drift) neither saves a
-//!    proxy nor sinks a true effect. Where `M` leaves nothing but noise on the held-out
-//!    rows (`h <= NOISE_TOLERANCE sigma_n`, then `K = 0`), the generic correction in
-//!    `c`'s place may also hold the linear maps of the modelled tip position that no
-//!    rigid motion makes (`generic::non_rigid`: stretches and symmetric shears; rotations
-//!    and translations are the registration's, in the vocabulary): what a tracker's
-//!    scale or calibration error makes, and what an effect that reaches the noise
-//!    through the tip's pose (a sensor offset along the tip, which turns with it) can
-//!    mimic. `c` must then beat that correction of `k` terms by the same margin and,
-//!    where that correction too leaves only noise, beyond chance ([`clearly_lower`](crate::paired::clearly_lower): a
+//!    proxy nor sinks a true effect (where `M` leaves nothing but noise on the held-out
+//!    rows, `h <= NOISE_TOLERANCE sigma_n`, `K = 0`). The generic terms, on both sides,
+//!    also hold the linear maps of the modelled tip position that no rigid motion
+//!    makes (`generic::non_rigid`: stretches, the same stretch on every axis, and
+//!    symmetric shears; rotations and translations are the registration's, in the
+//!    vocabulary), whether or not `M` leaves only noise: what a tracker's scale or
+//!    calibration error makes, and what an effect that reaches through the tip's pose
+//!    (a sensor offset along the tip, a precurvature, a clearance) can mimic. Where
+//!    that correction too leaves only noise, `c` must also beat it beyond chance ([`clearly_lower`](crate::paired::clearly_lower): a
 //!    paired test of the held-out squared errors over blocks of consecutive rows).
 //!    An effect whose own form is a map of the tip position (`generic::affine_in_tip`: every
 //!    parameter direction affine in the tip position, as a registration's) is not
@@ -125,8 +125,8 @@ pub(crate) enum Failure {
     Empirical {
         /// Its figures.
         fig: Figures,
-        /// Whether the correction was also linear in the tip position (the yardstick
-        /// where the model leaves only noise).
+        /// Whether the correction was also linear in the tip position (always, unless
+        /// the effect is itself such a map).
         tip: bool,
     },
     /// The effect's parameters are better proportional to a feature of the rows.
