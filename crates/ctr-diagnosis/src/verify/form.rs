@@ -16,10 +16,11 @@ impl Context<'_> {
         &self,
         m: &ModelSpec,
         frame: &ModelFrame,
+        directions: &[Field],
         e: &[RowError],
         c: EffectId,
     ) -> Option<Failure> {
-        let (feature, constant, proportional) = self.proportional(m, frame, e, c)?;
+        let (feature, constant, proportional) = self.proportional(m, frame, directions, e, c)?;
         let clearly_better = proportional.heldout_score()
             < (1.0 - MIN_GAIN_OVER_EMPIRICAL) * constant.heldout_score();
         clearly_better.then_some(Failure::Varying {
@@ -76,11 +77,11 @@ impl Context<'_> {
         &self,
         m: &ModelSpec,
         frame: &ModelFrame,
+        constant: &[Field],
         e_model: &[RowError],
         c: EffectId,
     ) -> Option<(String, Figures, Figures)> {
         let rows = self.rec.rows.len();
-        let constant = self.directions(m, frame, c)?;
         let k = constant.len();
         let direction = |j: usize, r: usize| constant[j][r];
         let x = c.read(m);
@@ -121,7 +122,7 @@ impl Context<'_> {
             self.figures(&with_angles(&left, e_row))
         };
         let all: Vec<usize> = (0..k).collect();
-        let h_const = heldout(&constant, &empirical::coefficients(&constant, &all, e, &w));
+        let h_const = heldout(constant, &empirical::coefficients(constant, &all, e, &w));
         let terms = empirical::pursue(&fields, e, &w, k);
         let first = terms.first().map(|&(i, _)| names[i].clone())?;
         Some((first, h_const, heldout(&fields, &terms)))

@@ -16,11 +16,14 @@ impl Context<'_> {
     /// Check 1: the figures of the generic correction in `c`'s place (`e_without`:
     /// `m`'s errors with `c` taken out), and the failure when it does as well as `c`
     /// (`e`: `m`'s errors; `at_noise`: `m` leaves only noise on the held-out rows);
-    /// the errors in `m`'s W (`frame`).
+    /// the errors in `m`'s W (`frame`); `directions`: `c`'s tip directions
+    /// ([`Context::directions`]), `None` where they cannot be had.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn against_generic(
         &self,
         m: &ModelSpec,
         frame: &ModelFrame,
+        directions: Option<&[Field]>,
         e: &[RowError],
         e_without: &[RowError],
         c: EffectId,
@@ -34,10 +37,7 @@ impl Context<'_> {
         // mimic: a precurvature, a clearance, a sensor offset along the tip), unless
         // `c`'s own form is such a map (a registration): it is not measured against
         // itself
-        let tip = self
-            .directions(m, frame, c)
-            .as_ref()
-            .is_some_and(|d| !affine_in_tip(d, &frame.tips(self.rec, e)));
+        let tip = directions.is_some_and(|d| !affine_in_tip(d, &frame.tips(self.rec, e)));
         let fields = |err: &[RowError]| -> Vec<Field> {
             let mut fields = self.yardstick.clone();
             if tip {

@@ -235,13 +235,25 @@ impl<'a> Context<'a> {
         // coordinate of the tip) then do not depend on how the tracker was registered
         let frame = ModelFrame::of(m);
         let (e, e_without) = (frame.errors(e), frame.errors(&e_without));
-        let (generic, failure) = self.against_generic(m, &frame, &e, &e_without, c, at_noise);
+        // the tip directions of `c`'s parameters, which both checks read: one Jacobian
+        let directions = self.directions(m, &frame, c);
+        let (generic, failure) = self.against_generic(
+            m,
+            &frame,
+            directions.as_deref(),
+            &e,
+            &e_without,
+            c,
+            at_noise,
+        );
         out.generic = Some(generic);
         out.failure = failure;
         // 2. where the model leaves more than noise: constant parameters against
         // parameters proportional to a feature
         if out.failure.is_none() && !at_noise && self.checks.constant {
-            out.failure = self.against_proportional(m, &frame, &e, c);
+            out.failure = directions
+                .as_deref()
+                .and_then(|d| self.against_proportional(m, &frame, d, &e, c));
         }
         out
     }
